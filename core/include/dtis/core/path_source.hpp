@@ -1,0 +1,56 @@
+// PathSource: what the interpolator sees of any path (DESIGN.md, "The two contracts").
+//
+// Given a saved state near arc length s and a trial arc length s', a PathSource returns the pose at
+// s' and the state there. For a curve the state is its parameter; for a surface strategy it is the
+// (u, v) of the contact point, and the pose comes from a Newton solve warm-started from the state.
+// States are small values, so the interpolator can back off to any earlier step and recompute.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "dtis/core/pose.hpp"
+
+namespace dtis {
+
+struct PathState {
+  double s = 0.0;          // arc length of the tool tip from the start of the path, mm
+  double u = 0.0;          // curve parameter, or the surface u of the contact point
+  double v = 0.0;          // surface v of the contact point (unused by curves)
+  std::int32_t piece = 0;  // a hint for the source: arc-length table interval, pass piece, ...
+};
+
+enum class PathStatus : std::uint8_t {
+  kOk,             // pose at the trial arc length
+  kEnd,            // the trial arc length is past the end; the pose and state are at the end
+  kLeftDomain,     // the solve left the face or the strategy's region before the trial arc length
+  kNoConvergence,  // the solve did not converge to its tolerance
+};
+
+struct PathSample {
+  PathStatus status = PathStatus::kOk;
+  PathState state;
+  Pose pose;
+  int iterations = 0;  // Newton iterations spent (0 for closed-form sources)
+};
+
+class PathSource {
+ public:
+  virtual ~PathSource() = default;
+
+  // The state at arc length 0.
+  virtual PathState Start() const = 0;
+
+  // The total arc length when it is known in advance (curves); surface strategies may only find
+  // out when a solve reaches the end (kEnd).
+  virtual std::optional<double> Length() const = 0;
+
+  // The pose at arc length `s`, warm-started from `from` (any earlier or later state of this path).
+  virtual PathSample At(const PathState& from, double s) const = 0;
+
+  // Where a state is, for error messages: "pass 3, u=0.25, v=0.5".
+  virtual std::string Describe(const PathState& state) const = 0;
+};
+
+}  // namespace dtis

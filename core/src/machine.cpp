@@ -1,0 +1,37 @@
+#include "dtis/core/machine.hpp"
+
+#include <fmt/format.h>
+
+#include <numbers>
+
+namespace dtis {
+
+std::string DescribeInverseFailure(const Machine& machine, const InverseResult& result) {
+  const auto axes = machine.Axes();
+  if (result.axis < 0 || result.axis >= static_cast<int>(axes.size())) {
+    return result.status == InverseStatus::kUnreachable
+               ? fmt::format("machine '{}' cannot hold this tool axis", machine.Name())
+               : fmt::format("machine '{}' has no solution for this pose", machine.Name());
+  }
+  const Axis& a = axes[static_cast<std::size_t>(result.axis)];
+  const double k = a.rotary ? 180.0 / std::numbers::pi : 1.0;
+  const char* unit = a.rotary ? "deg" : "mm";
+  switch (result.status) {
+    case InverseStatus::kOutOfTravel:
+      return fmt::format(
+          "axis {} would have to reach {:.6g} {}, outside its travel [{:.6g}, {:.6g}] {}", a.name,
+          result.value * k, unit, a.travel_min * k, a.travel_max * k, unit);
+    case InverseStatus::kBranchJump:
+      return fmt::format(
+          "axis {} would have to jump to {:.6g} {} (the tool axis passes a singularity that the "
+          "travel of the other axes does not let the machine go around)",
+          a.name, result.value * k, unit);
+    case InverseStatus::kUnreachable:
+      return fmt::format("machine '{}' cannot hold this tool axis", machine.Name());
+    case InverseStatus::kOk:
+      break;
+  }
+  return "ok";
+}
+
+}  // namespace dtis

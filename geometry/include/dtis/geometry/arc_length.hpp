@@ -1,0 +1,63 @@
+// Arc-length reparametrization u(s) of a curve: piecewise quintic Hermite interpolation of the
+// exact inverse of s(u) = integral of |C'(u)| du, built adaptively until the arc length of the
+// interpolated parameter is within `tolerance_mm` of s everywhere it is checked. Positions stay
+// exactly on the curve (they are C(u(s))); only the feed measured along s carries that tolerance.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <vector>
+
+namespace dtis::geometry {
+
+struct ArcLengthOptions {
+  double tolerance_mm = 1e-10;  // |s(u(s)) - s| at the checked points of every interval, mm
+  int max_depth = 40;           // bisections of one knot span
+};
+
+class ArcLengthMap {
+ public:
+  // `derivatives(u, order, d)` fills d[0..order] with the curve point and its u-derivatives.
+  using Evaluator = std::function<void(double, int, Eigen::Vector3d*)>;
+
+  // `breaks` are the parameters where the curve's derivatives may jump (its distinct knots),
+  // first and last included.
+  ArcLengthMap(const Evaluator& derivatives, const std::vector<double>& breaks,
+               const ArcLengthOptions& options = {});
+
+  double Length() const { return nodes_.back().s; }
+
+  // u at arc length s (clamped to [0, Length()]). `hint` is an interval index returned earlier; it
+  // is updated so that walking along the curve costs O(1).
+  double Parameter(double s, int* hint) const;
+
+  // The exact arc length between two parameters (Gauss-Legendre, adaptive), for checks.
+  double Integrate(double u0, double u1) const;
+
+  // The largest |s(u(s)) - s| seen while building, mm.
+  double MaxErrorMm() const { return max_error_mm_; }
+  int Intervals() const { return static_cast<int>(nodes_.size()) - 1; }
+
+ private:
+  struct Node {
+    double s;        // arc length at the node
+    double u;        // parameter at the node
+    double du_ds;    // 1/|C'|
+    double d2u_ds2;  // -(C'.C'')/|C'|^4
+  };
+  struct Piece {
+    double s0, inv_h;
+    double c[6];  // u = c0 + c1 t + ... + c5 t^5, t = (s - s0) * inv_h
+  };
+  Node MakeNode(double u, double s) const;
+  void Build(const Node& a, const Node& b, int depth);
+  double Speed(double u) const;
+
+  Evaluator derivatives_;
+  ArcLengthOptions options_;
+  std::vector<Node> nodes_;
+  std::vector<Piece> pieces_;
+  double max_error_mm_ = 0.0;
+};
+
+}  // namespace dtis::geometry

@@ -1,0 +1,54 @@
+// Non-rational and rational B-spline (NURBS) curves in 2D/3D, evaluated with dtis' own kernel
+// (The NURBS Book, A2.1-A2.3 and A4.2). OpenCASCADE's Geom_BSplineCurve is the reference the tests
+// compare against; bench/bench_curve.cpp measures both.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <string>
+#include <vector>
+
+namespace dtis::geometry {
+
+inline constexpr int kMaxCurveDegree = 15;
+
+// The poles, knots and weights that define a curve, as read from a file. Validated by BSplineCurve.
+struct BSplineCurveData {
+  int degree = 3;
+  std::vector<double> knots;           // size = poles + degree + 1, non-decreasing
+  std::vector<Eigen::Vector3d> poles;  // 2D curves have z = 0
+  std::vector<double> weights;         // empty: non-rational; else one per pole, > 0
+};
+
+class BSplineCurve {
+ public:
+  // Throws dtis::Error naming the first offending item (knot index, pole index, weight index).
+  // `what` prefixes the messages ("curves/trident.toml: curve").
+  explicit BSplineCurve(BSplineCurveData data, const std::string& what = "curve");
+
+  int Degree() const { return degree_; }
+  bool Rational() const { return !weights_.empty(); }
+  double FirstParameter() const { return knots_[static_cast<std::size_t>(degree_)]; }
+  double LastParameter() const { return knots_[poles_.size()]; }
+  const std::vector<double>& Knots() const { return knots_; }
+  const std::vector<Eigen::Vector3d>& Poles() const { return poles_; }
+  const std::vector<double>& Weights() const { return weights_; }
+
+  // The point at u (u is clamped to the domain).
+  Eigen::Vector3d Point(double u) const;
+
+  // The point and its derivatives with respect to u up to `order` (<= 3): d[0] .. d[order].
+  void Derivatives(double u, int order, Eigen::Vector3d* d) const;
+
+  // Index of the knot span containing u: knots[span] <= u < knots[span + 1] (last span closed).
+  int FindSpan(double u) const;
+
+ private:
+  int degree_;
+  std::vector<double> knots_;
+  std::vector<Eigen::Vector3d> poles_;
+  std::vector<double> weights_;
+  std::vector<Eigen::Vector4d> weighted_;  // (w*P, w) for rational curves
+};
+
+}  // namespace dtis::geometry

@@ -1,0 +1,62 @@
+// Curves as PathSources: a B-spline/NURBS tool-tip curve with a fixed tool axis (3-axis), the
+// 5-axis B-spline pair of Beudaert 2012 (bottom curve = tool tip, top curve = a point on the tool
+// axis, same parameter), and straight lines. The state is the curve parameter; s is the arc length
+// of the tool tip.
+#pragma once
+
+#include <memory>
+#include <optional>
+
+#include "dtis/core/path_source.hpp"
+#include "dtis/geometry/arc_length.hpp"
+#include "dtis/geometry/bspline_curve.hpp"
+
+namespace dtis::geometry {
+
+class CurvePath final : public PathSource {
+ public:
+  // 3-axis: the tool axis is constant.
+  CurvePath(BSplineCurve curve, const Eigen::Vector3d& tool_axis,
+            const ArcLengthOptions& options = {});
+  // 5-axis pair: `top` must have the bottom's degree and knots. Throws dtis::Error otherwise, or if
+  // the two curves meet (the tool axis would be undefined).
+  CurvePath(BSplineCurve bottom, BSplineCurve top, const ArcLengthOptions& options = {});
+
+  PathState Start() const override;
+  std::optional<double> Length() const override { return map_.Length(); }
+  PathSample At(const PathState& from, double s) const override;
+  std::string Describe(const PathState& state) const override;
+
+  const BSplineCurve& Bottom() const { return bottom_; }
+  const std::optional<BSplineCurve>& Top() const { return top_; }
+  const ArcLengthMap& Map() const { return map_; }
+  // The pose at curve parameter u.
+  Pose PoseAt(double u) const;
+
+ private:
+  BSplineCurve bottom_;
+  std::optional<BSplineCurve> top_;
+  Eigen::Vector3d axis_;
+  ArcLengthMap map_;
+};
+
+class LinePath final : public PathSource {
+ public:
+  // Throws dtis::Error if the two points coincide.
+  LinePath(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+           const Eigen::Vector3d& tool_axis);
+
+  PathState Start() const override { return {}; }
+  std::optional<double> Length() const override { return length_; }
+  PathSample At(const PathState& from, double s) const override;
+  std::string Describe(const PathState& state) const override;
+
+ private:
+  Eigen::Vector3d from_, direction_, axis_;
+  double length_;
+};
+
+// The distinct knots of a curve inside its domain, ends included.
+std::vector<double> DistinctKnots(const BSplineCurve& curve);
+
+}  // namespace dtis::geometry

@@ -1,0 +1,105 @@
+#include "dtis/geometry/curve_path.hpp"
+
+#include <fmt/format.h>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::geometry {
+namespace {
+
+ArcLengthMap::Evaluator Evaluate(const BSplineCurve& curve) {
+  return [&curve](double u, int order, Eigen::Vector3d* d) { curve.Derivatives(u, order, d); };
+}
+
+}  // namespace
+
+std::vector<double> DistinctKnots(const BSplineCurve& curve) {
+  std::vector<double> breaks;
+  for (const double k : curve.Knots()) {
+    if (k < curve.FirstParameter() || k > curve.LastParameter()) continue;
+    if (breaks.empty() || k > breaks.back()) breaks.push_back(k);
+  }
+  return breaks;
+}
+
+CurvePath::CurvePath(BSplineCurve curve, const Eigen::Vector3d& tool_axis,
+                     const ArcLengthOptions& options)
+    : bottom_(std::move(curve)),
+      axis_(tool_axis.normalized()),
+      map_(Evaluate(bottom_), DistinctKnots(bottom_), options) {
+  if (!(tool_axis.norm() > 0.0)) throw Error("tool axis must be a non-zero vector");
+  if (!(map_.Length() > 0.0)) throw Error("curve has zero length");
+}
+
+CurvePath::CurvePath(BSplineCurve bottom, BSplineCurve top, const ArcLengthOptions& options)
+    : bottom_(std::move(bottom)),
+      top_(std::move(top)),
+      axis_(Eigen::Vector3d::UnitZ()),
+      map_(Evaluate(bottom_), DistinctKnots(bottom_), options) {
+  if (top_->Degree() != bottom_.Degree() || top_->Knots() != bottom_.Knots()) {
+    throw Error("top curve must have the bottom curve's degree and knots (same parametrization)");
+  }
+  if (!(map_.Length() > 0.0)) throw Error("bottom curve has zero length");
+  // The tool axis is top - bottom: check it never vanishes at a dense set of parameters.
+  const int samples = 64 * static_cast<int>(bottom_.Poles().size());
+  for (int i = 0; i <= samples; ++i) {
+    const double u = bottom_.FirstParameter() +
+                     (bottom_.LastParameter() - bottom_.FirstParameter()) * i / samples;
+    if ((top_->Point(u) - bottom_.Point(u)).norm() < 1e-9) {
+      throw Error("top and bottom curves meet at u = {}: the tool axis is undefined there", u);
+    }
+  }
+}
+
+PathState CurvePath::Start() const { return {0.0, bottom_.FirstParameter(), 0.0, 0}; }
+
+Pose CurvePath::PoseAt(double u) const {
+  Pose pose;
+  pose.tip = bottom_.Point(u);
+  pose.axis = top_ ? Eigen::Vector3d((top_->Point(u) - pose.tip).normalized()) : axis_;
+  return pose;
+}
+
+PathSample CurvePath::At(const PathState& from, double s) const {
+  PathSample sample;
+  const double length = map_.Length();
+  if (s >= length) {
+    sample.status = s > length ? PathStatus::kEnd : PathStatus::kOk;
+    s = length;
+  }
+  int hint = from.piece;
+  const double u = map_.Parameter(s, &hint);
+  sample.state = {s, u, 0.0, hint};
+  sample.pose = PoseAt(u);
+  return sample;
+}
+
+std::string CurvePath::Describe(const PathState& state) const {
+  return fmt::format("arc length {} mm, u = {}", state.s, state.u);
+}
+
+LinePath::LinePath(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                   const Eigen::Vector3d& tool_axis)
+    : from_(from), axis_(tool_axis.normalized()), length_((to - from).norm()) {
+  if (!(length_ > 0.0)) throw Error("line from and to are the same point");
+  if (!(tool_axis.norm() > 0.0)) throw Error("tool axis must be a non-zero vector");
+  direction_ = (to - from) / length_;
+}
+
+PathSample LinePath::At(const PathState&, double s) const {
+  PathSample sample;
+  if (s >= length_) {
+    sample.status = s > length_ ? PathStatus::kEnd : PathStatus::kOk;
+    s = length_;
+  }
+  sample.state = {s, s / length_, 0.0, 0};
+  sample.pose.tip = from_ + s * direction_;
+  sample.pose.axis = axis_;
+  return sample;
+}
+
+std::string LinePath::Describe(const PathState& state) const {
+  return fmt::format("arc length {} mm on the line", state.s);
+}
+
+}  // namespace dtis::geometry

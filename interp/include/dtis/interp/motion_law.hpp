@@ -1,0 +1,38 @@
+// Discrete jerk-limited laws along the path, in the backward differences of Eq. 6 (Beudaert 2012):
+//   v_k = (s_k - s_{k-1}) / dt,  a_k = (v_k - v_{k-1}) / dt,  j_k = (a_k - a_{k-1}) / dt.
+// They serve the interpolator as look-ahead (reach a feed cap without overshoot, stop at the end of
+// the path) and as the brake policy of the back-off (the paper's "s_min sequence", made to end at
+// rest with zero acceleration).
+#pragma once
+
+namespace dtis::interp {
+
+// The release of an acceleration is planned at this fraction of the jerk the law may use. In exact
+// arithmetic a release that just fits is a neutral equilibrium: the slack v - ReleaseGain never
+// changes, so rounding of the positions would random-walk it and a negative slack makes the last
+// period need more than the jerk limit. Planning the release slightly softer than the jerk cap lets
+// every period re-aim at zero slack with headroom to absorb that noise (cost: 1e-4 of a release).
+inline constexpr double kReleaseJerkFraction = 1.0 - 1e-4;
+
+// Velocity gained while an acceleration a > 0 is brought back to 0 at jerk -jerk, one period at a
+// time (the last period partial). Zero for a <= 0. By symmetry, ReleaseGain(-a) is the velocity
+// lost while a negative acceleration is brought back to 0.
+double ReleaseGain(double a, double jerk, double dt);
+
+// The largest next acceleration a such that v + a dt + ReleaseGain(a) <= cap: accelerating with it
+// still lets the feed settle at or below `cap`. May be negative when v is above the cap.
+double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt);
+
+// The next acceleration of the fastest stop to rest from (v >= 0, a): brake at -jerk down to
+// -acceleration, and release (at kReleaseJerkFraction of jerk) so that v and a reach zero together.
+double StopAcceleration(double v, double a, double jerk, double acceleration, double dt);
+
+// Distance travelled by StopAcceleration from (v, a) until rest, and the number of periods. Returns
+// infinity if the law cannot stop (v would turn negative).
+struct StopDistance {
+  double distance;
+  int periods;
+};
+StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt);
+
+}  // namespace dtis::interp

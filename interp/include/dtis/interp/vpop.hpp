@@ -1,0 +1,107 @@
+// The fixed-period VPOp interpolator (Beudaert, Lavernhe, Tournier 2012, §2), on any PathSource and
+// any Machine.
+//
+// At each period the next arc length s_{j+1} must satisfy every constraint. The backward
+// differences of Eq. 6 and 14 are affine in the newest position, so each axis limit is an interval
+// on q_i^{j+1} built from the three previous exact positions:
+//   |q - q_j| <= V dt,  |q - (2 q_j - q_{j-1})| <= A dt^2,  |q - (3 q_j - 3 q_{j-1} + q_{j-2})| <=
+//   J dt^3
+// (Eq. 7-9 are these intervals with q expanded around s_{j+1}; here the exact positions are used
+// and a local model of q(s) only proposes the step). Tangential feed, acceleration and jerk give an
+// interval on s_{j+1} directly. The planner takes the largest s_{j+1} whose exact position lies in
+// every axis interval, so the emitted setpoints respect 100 % of every limit, not the paper's 120
+// %. When no s_{j+1} is feasible it backs off with the dichotomy of §2.3: it finds the latest step
+// from which the brake law reaches rest, brakes one period there and goes on at s_max. Look-ahead
+// (§2.5) for known stops: a feed cap is approached without overshoot and the end of the path is
+// reached at rest by discrete jerk-limited laws (motion_law.hpp).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include "dtis/core/machine.hpp"
+#include "dtis/core/path_source.hpp"
+
+namespace dtis::interp {
+
+struct VpopOptions {
+  double period_s = 1e-3;  // dt: setpoints are exactly this far apart, s
+  double feed_mm_s = 0.0;  // programmed feed F, the upper bound of (s_{j+1} - s_j) / dt, mm/s
+  // Tangential acceleration and jerk bounds (Eq. 6 on s), mm/s^2 and mm/s^3; infinity: none.
+  double tangential_acceleration_mm_s2 = std::numeric_limits<double>::infinity();
+  double tangential_jerk_mm_s3 = std::numeric_limits<double>::infinity();
+  // Plan against this fraction of every axis limit (1 = 100 %). Rounding of the emitted numbers is
+  // accounted for separately, so 1 is safe.
+  double limit_fraction = 1.0;
+  // The motion ends at rest within this distance of the end of the path, mm.
+  double end_tolerance_mm = 1e-9;
+  // Exact evaluations allowed in the search for one step before it counts as empty.
+  int max_search_evaluations = 24;
+  // Steps kept open to back-off before they are handed to the sink. Each handed-over step is one
+  // from which a stop to rest within every limit is proven (DESIGN.md: the commit horizon).
+  std::size_t commit_horizon = std::numeric_limits<std::size_t>::max();
+  // Largest absolute axis position expected, used to size the rounding guard (mm or rad; 0: from
+  // the axis travel, 10 turns for continuous rotary axes).
+  double position_scale = 0.0;
+
+  bool IsValid(std::string* why) const;
+};
+
+// Which constraint decided a step.
+enum class Limiter : std::uint8_t {
+  kStart,
+  kFeed,
+  kTangentialAcceleration,
+  kTangentialJerk,
+  kFeedLookAhead,  // approaching a feed or axis-velocity cap without overshoot
+  kEndLookAhead,   // stopping at the end of the path
+  kPathEnd,
+  kAxisVelocity,
+  kAxisAcceleration,
+  kAxisJerk,
+  kBackOff,  // a brake step chosen by the dichotomy
+  kRest,
+  kCount
+};
+const char* LimiterName(Limiter limiter);
+
+struct LimiterId {
+  Limiter kind = Limiter::kStart;
+  std::int8_t axis = -1;  // for axis limiters
+};
+
+struct Setpoint {
+  long index = 0;   // period number; t = index * dt
+  double s = 0.0;   // arc length, mm
+  AxisVector q;     // mm and rad
+  PathState state;  // of the path source
+  LimiterId limiter;
+};
+
+class SetpointSink {
+ public:
+  virtual ~SetpointSink() = default;
+  // Called once per setpoint, in order. A setpoint handed over never changes.
+  virtual void Accept(const Setpoint& setpoint) = 0;
+};
+
+struct VpopSummary {
+  double motion_time_s = 0.0;  // time of the last period that moves
+  long setpoints = 0;          // handed to the sink, rest rows included
+  double end_s = 0.0;          // arc length where the motion stopped, mm
+  long back_offs = 0;          // dichotomies run
+  long brake_tests = 0;        // brake-to-rest sequences tried by the dichotomies
+  long evaluations = 0;        // pose + inverse kinematics evaluations
+  long path_iterations = 0;    // Newton iterations reported by the path source
+  std::array<long, static_cast<int>(Limiter::kCount)> limited_by{};  // steps per limiter kind
+};
+
+// Plans the whole path and hands every setpoint to `sink`. Throws dtis::Error when the path cannot
+// be followed (out of travel, a singularity the machine cannot pass, the path source failing), with
+// the arc length and the source's description of where.
+VpopSummary PlanVpop(const PathSource& path, const Machine& machine, const VpopOptions& options,
+                     SetpointSink& sink);
+
+}  // namespace dtis::interp

@@ -1,0 +1,733 @@
+#include "dtis/interp/vpop.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <numbers>
+#include <optional>
+
+#include "dtis/core/error.hpp"
+#include "dtis/interp/motion_law.hpp"
+
+namespace dtis::interp {
+
+const char* LimiterName(Limiter limiter) {
+  switch (limiter) {
+    case Limiter::kStart:
+      return "start";
+    case Limiter::kFeed:
+      return "feed";
+    case Limiter::kTangentialAcceleration:
+      return "tangential_acceleration";
+    case Limiter::kTangentialJerk:
+      return "tangential_jerk";
+    case Limiter::kFeedLookAhead:
+      return "feed_look_ahead";
+    case Limiter::kEndLookAhead:
+      return "end_look_ahead";
+    case Limiter::kPathEnd:
+      return "path_end";
+    case Limiter::kAxisVelocity:
+      return "axis_velocity";
+    case Limiter::kAxisAcceleration:
+      return "axis_acceleration";
+    case Limiter::kAxisJerk:
+      return "axis_jerk";
+    case Limiter::kBackOff:
+      return "back_off";
+    case Limiter::kRest:
+      return "rest";
+    case Limiter::kCount:
+      break;
+  }
+  return "?";
+}
+
+bool VpopOptions::IsValid(std::string* why) const {
+  const auto fail = [why](std::string message) {
+    if (why) *why = std::move(message);
+    return false;
+  };
+  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
+    return fail(fmt::format("period must be a finite time > 0 s, got {}", period_s));
+  }
+  if (!(feed_mm_s > 0.0) || !std::isfinite(feed_mm_s)) {
+    return fail(fmt::format("feed must be a finite speed > 0, got {} mm/s", feed_mm_s));
+  }
+  if (!(tangential_acceleration_mm_s2 > 0.0)) {
+    return fail(fmt::format("tangential acceleration must be > 0, got {} mm/s^2",
+                            tangential_acceleration_mm_s2));
+  }
+  if (!(tangential_jerk_mm_s3 > 0.0)) {
+    return fail(fmt::format("tangential jerk must be > 0, got {} mm/s^3", tangential_jerk_mm_s3));
+  }
+  if (!(limit_fraction > 0.0 && limit_fraction <= 1.0)) {
+    return fail(fmt::format("limit fraction must be in (0, 1], got {}", limit_fraction));
+  }
+  if (!(end_tolerance_mm > 0.0)) {
+    return fail(fmt::format("end tolerance must be > 0 mm, got {}", end_tolerance_mm));
+  }
+  if (max_search_evaluations < 4) {
+    return fail(fmt::format("max_search_evaluations must be >= 4, got {}", max_search_evaluations));
+  }
+  if (commit_horizon < 8) return fail("commit horizon must be at least 8 periods");
+  return true;
+}
+
+namespace {
+
+struct Step {
+  double s = 0.0;
+  PathState state;
+  AxisVector q;
+  LimiterId limiter;
+};
+
+// The three latest steps, newest last.
+struct History {
+  const Step* p2;
+  const Step* p1;
+  const Step* p0;
+};
+
+struct Interval {
+  double lo, hi;
+  LimiterId lo_by, hi_by;
+};
+
+struct Box {
+  int n = 0;
+  double lo[kMaxAxes], hi[kMaxAxes];
+  Limiter lo_kind[kMaxAxes], hi_kind[kMaxAxes];
+  double band[kMaxAxes];  // narrowest of the three half-widths, for the search tolerance
+};
+
+struct Limits {
+  double v, a, j;  // per-axis planning limits after the rounding guard
+};
+
+struct Effective {
+  double feed, acceleration, jerk;  // along the path, from the axis limits and the tangential ones
+};
+
+// The look-ahead and brake laws aim this fraction of the effective limits, so that their targets
+// fall strictly inside the axis intervals instead of on their faces (where rounding decides).
+constexpr double kLawMargin = 1.0 - 1e-7;
+
+class Planner {
+ public:
+  Planner(const PathSource& path, const Machine& machine, const VpopOptions& options,
+          SetpointSink& sink)
+      : path_(path), machine_(machine), o_(options), sink_(sink), dt_(options.period_s) {
+    std::string why;
+    if (!o_.IsValid(&why)) throw Error("interpolator options: {}", why);
+    const auto axes = machine_.Axes();
+    n_ = static_cast<int>(axes.size());
+    constexpr double kEps = 2.220446049250313e-16;
+    for (int i = 0; i < n_; ++i) {
+      const Axis& a = axes[static_cast<std::size_t>(i)];
+      for (const double limit : {a.vmax, a.amax, a.jmax}) {
+        if (!(limit > 0.0) || !std::isfinite(limit)) {
+          throw Error("machine '{}': axis {} limits must be finite and > 0", machine_.Name(),
+                      a.name);
+        }
+      }
+      // Rounding guard: writing positions (and degrees) and differencing them again moves a jerk
+      // by about 8 eps |q| / dt^3; plan that much below the limit so the verifier never reads > 1.
+      double scale = o_.position_scale;
+      if (!(scale > 0.0)) {
+        scale = a.continuous ? 20.0 * std::numbers::pi
+                             : std::max(std::abs(a.travel_min), std::abs(a.travel_max));
+        if (!std::isfinite(scale)) scale = 1e4;
+      }
+      const double guard = 64.0 * kEps * (scale + 1.0);
+      Limits l;
+      l.v = o_.limit_fraction * a.vmax - guard / dt_;
+      l.a = o_.limit_fraction * a.amax - 2.0 * guard / (dt_ * dt_);
+      l.j = o_.limit_fraction * a.jmax - 4.0 * guard / (dt_ * dt_ * dt_);
+      if (l.v < 0.999 * o_.limit_fraction * a.vmax || l.a < 0.999 * o_.limit_fraction * a.amax ||
+          l.j < 0.999 * o_.limit_fraction * a.jmax) {
+        throw Error(
+            "period {} s is too short for axis {}: rounding of positions near {} would eat more "
+            "than 0.1 % of its limits; use a longer period",
+            dt_, a.name, scale);
+      }
+      limits_[i] = l;
+    }
+  }
+
+  VpopSummary Run();
+
+ private:
+  // ---- evaluation
+  bool Evaluate(const Step& from, double s, Step* out);
+  [[noreturn]] void FailAt(const Step& where, const std::string& what) const;
+
+  // ---- one step
+  Interval Tangential(const History& h) const;
+  bool MakeBox(const History& h, Box* box) const;
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Direction(const History& h);
+  Effective Available(const History& h, const Box& box, const Interval& t);
+  std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e) const;
+  bool Solve(const History& h, const Box& box, double lo, double hi, double target, Step* out,
+             LimiterId* by);
+  enum class Mode { kGreedy, kBrake };
+  bool Produce(const History& h, Mode mode, Step* out);
+
+  // ---- back-off
+  bool Brake(long m, Step* first);
+  void BackOff(long failed);
+  void Commit(long upto);
+
+  const Step& At(long g) const {
+    return steps_[static_cast<std::size_t>(std::max(g, base_) - base_)];
+  }
+  long Last() const { return base_ + static_cast<long>(steps_.size()) - 1; }
+  History HistoryAt(long g) const { return {&At(g - 2), &At(g - 1), &At(g)}; }
+  static bool AtRest(const History& h) { return h.p0->s == h.p1->s && h.p1->s == h.p2->s; }
+  bool Finished(const History& h) const {
+    return AtRest(h) && length_ && h.p0->s >= *length_ - o_.end_tolerance_mm;
+  }
+
+  const PathSource& path_;
+  const Machine& machine_;
+  const VpopOptions& o_;
+  SetpointSink& sink_;
+  const double dt_;
+  int n_ = 0;
+  Limits limits_[kMaxAxes];
+  std::optional<double> length_;
+  std::deque<Step> steps_;
+  long base_ = 0;       // global index of steps_.front()
+  long committed_ = 0;  // steps with a global index below this were handed to the sink
+  long safe_ = 0;       // latest step from which a stop to rest is proven
+  VpopSummary summary_;
+  double last_stuck_s_ = -1.0;
+  int stuck_count_ = 0;
+};
+
+[[noreturn]] void Planner::FailAt(const Step& where, const std::string& what) const {
+  throw Error("cannot follow the path at {}: {}", path_.Describe(where.state), what);
+}
+
+bool Planner::Evaluate(const Step& from, double s, Step* out) {
+  ++summary_.evaluations;
+  const PathSample sample = path_.At(from.state, s);
+  summary_.path_iterations += sample.iterations;
+  switch (sample.status) {
+    case PathStatus::kOk:
+      break;
+    case PathStatus::kEnd:
+      if (!length_ || sample.state.s < *length_) length_ = sample.state.s;
+      break;
+    case PathStatus::kLeftDomain:
+      FailAt(from, fmt::format("the path source left its domain before arc length {} mm", s));
+    case PathStatus::kNoConvergence:
+      FailAt(from, fmt::format("the path source did not converge at arc length {} mm", s));
+  }
+  out->s = sample.state.s;
+  out->state = sample.state;
+  const InverseResult r = machine_.Inverse(sample.pose, &from.q, &out->q);
+  if (r.status != InverseStatus::kOk) {
+    Step where = *out;
+    FailAt(where, DescribeInverseFailure(machine_, r));
+  }
+  return sample.status == PathStatus::kOk;
+}
+
+Interval Planner::Tangential(const History& h) const {
+  const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
+  const double v1 = (h.p1->s - h.p2->s) / dt_, a0 = (v0 - v1) / dt_;
+  Interval r{s0, s0 + o_.feed_mm_s * dt_, {Limiter::kRest, -1}, {Limiter::kFeed, -1}};
+  const auto lower = [&r](double v, Limiter by) {
+    if (v > r.lo) r.lo = v, r.lo_by = {by, -1};
+  };
+  const auto upper = [&r](double v, Limiter by) {
+    if (v < r.hi) r.hi = v, r.hi_by = {by, -1};
+  };
+  if (std::isfinite(o_.tangential_acceleration_mm_s2)) {
+    const double base = s0 + v0 * dt_, w = o_.tangential_acceleration_mm_s2 * dt_ * dt_;
+    lower(base - w, Limiter::kTangentialAcceleration);
+    upper(base + w, Limiter::kTangentialAcceleration);
+  }
+  if (std::isfinite(o_.tangential_jerk_mm_s3)) {
+    const double base = s0 + v0 * dt_ + a0 * dt_ * dt_,
+                 w = o_.tangential_jerk_mm_s3 * dt_ * dt_ * dt_;
+    lower(base - w, Limiter::kTangentialJerk);
+    upper(base + w, Limiter::kTangentialJerk);
+  }
+  if (length_) upper(*length_, Limiter::kPathEnd);
+  return r;
+}
+
+bool Planner::MakeBox(const History& h, Box* box) const {
+  box->n = n_;
+  for (int i = 0; i < n_; ++i) {
+    const double q0 = h.p0->q[i], q1 = h.p1->q[i], q2 = h.p2->q[i];
+    const Limits& l = limits_[i];
+    const double wv = l.v * dt_, wa = l.a * dt_ * dt_, wj = l.j * dt_ * dt_ * dt_;
+    double lo = q0 - wv, hi = q0 + wv;
+    Limiter lo_kind = Limiter::kAxisVelocity, hi_kind = Limiter::kAxisVelocity;
+    const double ca = 2.0 * q0 - q1;
+    if (ca - wa > lo) lo = ca - wa, lo_kind = Limiter::kAxisAcceleration;
+    if (ca + wa < hi) hi = ca + wa, hi_kind = Limiter::kAxisAcceleration;
+    const double cj = 3.0 * q0 - 3.0 * q1 + q2;
+    if (cj - wj > lo) lo = cj - wj, lo_kind = Limiter::kAxisJerk;
+    if (cj + wj < hi) hi = cj + wj, hi_kind = Limiter::kAxisJerk;
+    if (lo > hi) return false;
+    box->lo[i] = lo;
+    box->hi[i] = hi;
+    box->lo_kind[i] = lo_kind;
+    box->hi_kind[i] = hi_kind;
+    box->band[i] = std::min({wv, wa, wj});
+  }
+  return true;
+}
+
+Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Planner::Direction(const History& h) {
+  const double ds = h.p0->s - h.p1->s;
+  if (ds > 1e-9) return (h.p0->q - h.p1->q) / ds;
+  // At (or almost at) rest: probe the path a little ahead.
+  const double probe = 1e-4;
+  double s = h.p0->s + probe;
+  if (length_ && s > *length_) s = std::max(*length_, h.p0->s);
+  Step ahead;
+  Evaluate(*h.p0, s, &ahead);
+  if (ahead.s - h.p0->s > 1e-12) return (ahead.q - h.p0->q) / (ahead.s - h.p0->s);
+  // At the very end: look back instead.
+  Step behind;
+  Evaluate(*h.p0, std::max(0.0, h.p0->s - probe), &behind);
+  if (h.p0->s - behind.s > 1e-12) return (h.p0->q - behind.q) / (h.p0->s - behind.s);
+  return Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>::Zero(n_);
+}
+
+// The limits along the path that the look-ahead and brake laws may use from this step: the feed
+// (programmed, and each axis velocity over |dq_i/ds|), the acceleration (each axis' limit less its
+// centripetal part q_ss v^2), and the jerk that the axis intervals of this very step leave around
+// the zero-jerk position, which accounts for the curvature terms of Eq. 3 exactly here.
+Effective Planner::Available(const History& h, const Box& box, const Interval& t) {
+  using V = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>;
+  const double s0 = h.p0->s, s1 = h.p1->s;
+  const double v0 = (s0 - s1) / dt_, a0 = (v0 - (s1 - h.p2->s) / dt_) / dt_;
+  const double natural = s0 + (v0 + a0 * dt_) * dt_;  // zero path jerk
+  Effective e{o_.feed_mm_s, o_.tangential_acceleration_mm_s2, o_.tangential_jerk_mm_s3};
+  double up = INFINITY, down = INFINITY;
+  if (std::isfinite(o_.tangential_jerk_mm_s3)) up = down = o_.tangential_jerk_mm_s3;
+  V g, curvature = V::Zero(n_);
+  Step probe;
+  const double tiny = 1e-12 * (1.0 + std::abs(s0));
+  if (natural - s0 > tiny && natural <= t.hi) {
+    Evaluate(*h.p0, natural, &probe);
+    const V d0x = (probe.q - h.p0->q) / (probe.s - s0);
+    if (s0 - s1 > tiny) {
+      const V d10 = (h.p0->q - h.p1->q) / (s0 - s1);
+      const V d10x = (d0x - d10) / (probe.s - s1);
+      g = d10 + d10x * ((probe.s - s1) + (probe.s - s0));
+      curvature = 2.0 * d10x;
+    } else {
+      g = d0x;
+    }
+  } else {
+    g = Direction(h);
+    probe = *h.p0;
+    probe.s = s0;
+  }
+  const double d3 = dt_ * dt_ * dt_;
+  for (int i = 0; i < n_; ++i) {
+    const double k = std::abs(g[i]);
+    if (k < 1e-9) continue;
+    e.feed = std::min(e.feed, limits_[i].v / k);
+    const double centripetal = std::abs(curvature[i]) * v0 * v0;
+    e.acceleration = std::min(e.acceleration, std::max(limits_[i].a - centripetal, 0.0) / k);
+    // The axis interval as an interval of s around the probe, then as path jerk around `natural`.
+    double a = probe.s + (box.lo[i] - probe.q[i]) / g[i];
+    double b = probe.s + (box.hi[i] - probe.q[i]) / g[i];
+    if (a > b) std::swap(a, b);
+    up = std::min(up, (b - natural) / d3);
+    down = std::min(down, (natural - a) / d3);
+  }
+  // Symmetric and never below a sliver of the nominal jerk: the laws divide by it, and the exact
+  // search repairs whatever the estimate misses.
+  double nominal = INFINITY;
+  for (int i = 0; i < n_; ++i) {
+    if (std::abs(g[i]) >= 1e-9) nominal = std::min(nominal, limits_[i].j / std::abs(g[i]));
+  }
+  if (!std::isfinite(nominal))
+    nominal = std::isfinite(o_.tangential_jerk_mm_s3) ? o_.tangential_jerk_mm_s3 : 1e15;
+  e.jerk = std::clamp(std::min(up, down), 1e-3 * nominal, nominal);
+  if (!std::isfinite(e.acceleration)) e.acceleration = 1e12;
+  e.acceleration = std::max(e.acceleration, 1e-3 * e.jerk * dt_);
+  return e;
+}
+
+// The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, and stop
+// at the end of the path.
+std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e) const {
+  const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
+  const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
+  const double jerk = e.jerk * kLawMargin, acceleration = e.acceleration * kLawMargin;
+  double a_hi =
+      std::min(MaxAccelerationUnderCap(v0, e.feed, jerk * kReleaseJerkFraction, dt_), acceleration);
+  LimiterId by{Limiter::kFeedLookAhead, -1};
+  if (length_) {
+    const double a_pos = std::max(a_hi, 0.0);
+    const double v_top = v0 + a_pos * dt_ + ReleaseGain(a_pos, jerk, dt_);
+    const double t_stop =
+        v_top / acceleration + 2.0 * std::sqrt(v_top / jerk) + std::max(a0, 0.0) / jerk + 4.0 * dt_;
+    if (s0 + v_top * (t_stop + dt_) >= *length_) {
+      const auto reach = [&](double a) {
+        const double v = v0 + a * dt_;
+        if (v < 0.0) return s0;
+        return s0 + v * dt_ + StopDistanceFrom(v, a, jerk, acceleration, dt_).distance;
+      };
+      if (reach(a_hi) > *length_) {
+        double lo = std::max(a0 - jerk * dt_, -acceleration);
+        lo = std::max(lo, -v0 / dt_);
+        double hi = a_hi;
+        if (reach(lo) > *length_) {
+          a_hi = lo;
+        } else {
+          // Bisection on the acceleration: reach() is increasing in it.
+          for (int k = 0; k < 60 && hi - lo > 1e-12 * (1.0 + std::abs(hi)); ++k) {
+            const double mid = 0.5 * (lo + hi);
+            (reach(mid) <= *length_ ? lo : hi) = mid;
+          }
+          a_hi = lo;
+        }
+        by = {Limiter::kEndLookAhead, -1};
+      }
+    }
+  }
+  return {s0 + (v0 + a_hi * dt_) * dt_, by};
+}
+
+// The feasible s in [lo, hi] nearest to `target`, found with exact evaluations: a linear model of
+// q(s) through the last infeasible evaluation proposes a point a hair inside the model's feasible
+// interval; once a feasible point is known, regula falsi on the violated constraint closes in.
+bool Planner::Solve(const History& h, const Box& box, double lo, double hi, double target,
+                    Step* out, LimiterId* by) {
+  struct Miss {
+    double worst = 0.0;  // in units of the axis band; <= 0: feasible
+    int axis = -1;
+    bool upper = false;
+  };
+  const auto miss = [&](const Step& x) {
+    Miss m;
+    for (int i = 0; i < n_; ++i) {
+      const double over = (x.q[i] - box.hi[i]) / box.band[i];
+      const double under = (box.lo[i] - x.q[i]) / box.band[i];
+      if (over > m.worst) m = {over, i, true};
+      if (under > m.worst) m = {under, i, false};
+    }
+    return m;
+  };
+  const auto signed_miss = [&](const Step& x, const Miss& m) {
+    return m.upper ? x.q[m.axis] - box.hi[m.axis] : box.lo[m.axis] - x.q[m.axis];
+  };
+  // dq/ds at x: the tangent of the quadratic through the two latest steps and x (the chord alone
+  // misplaces q by q_ss ds^2 / 2, as much as an axis jerk interval is wide).
+  const auto slope = [&](const Step& x) {
+    using V = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>;
+    const double s1 = h.p1->s, s0 = h.p0->s, sx = x.s;
+    const double tiny = 1e-12 * (1.0 + std::abs(sx));
+    if (sx - s0 <= tiny) return V(Direction(h));
+    const V d0x = (x.q - h.p0->q) / (sx - s0);
+    if (s0 - s1 <= tiny) return d0x;
+    const V d10 = (h.p0->q - h.p1->q) / (s0 - s1);
+    const V d10x = (d0x - d10) / (sx - s1);
+    return V(d10 + d10x * ((sx - s1) + (sx - s0)));
+  };
+  // Which way s must move to repair the miss m at x: +1, -1 (0: it cannot).
+  const auto repair = [&](const Step& x, const Miss& m) {
+    const double g = slope(x)[m.axis];
+    if (g == 0.0) return 0;
+    return (m.upper ? -1 : 1) * (g > 0.0 ? 1 : -1);
+  };
+
+  Step x;
+  Evaluate(*h.p0, target, &x);
+  Miss mx = miss(x);
+  if (mx.worst <= 0.0) {
+    *out = x;
+    return true;
+  }
+  Step bad = x;
+  Miss bad_miss = mx;
+  int bad_dir = repair(bad, bad_miss);
+  if (bad_dir == 0) return false;
+  std::optional<Step> good;
+  double far = std::numeric_limits<double>::quiet_NaN();  // infeasible, beyond the feasible set
+  int kept = 0;  // times `good` was kept by regula falsi in a row (Illinois)
+  for (int k = 1; k < o_.max_search_evaluations; ++k) {
+    double next;
+    if (good) {
+      const double mg = signed_miss(*good, bad_miss);
+      const double mb = signed_miss(bad, bad_miss);
+      if (-mg <= 1e-4 * box.band[bad_miss.axis]) break;
+      if (std::abs(bad.s - good->s) <= 1e-14 * (1.0 + std::abs(bad.s))) break;
+      const double w = kept >= 2 ? 0.5 : 1.0;
+      next = good->s + (bad.s - good->s) * (-mg) / (w * mb - mg);
+      const double a = std::min(good->s, bad.s), b = std::max(good->s, bad.s);
+      if (!(next > a && next < b)) next = 0.5 * (a + b);
+    } else if (!std::isnan(far)) {
+      next = 0.5 * (bad.s + far);
+    } else {
+      const auto g = slope(bad);
+      double mlo = lo, mhi = hi, band_s = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < n_; ++i) {
+        if (std::abs(g[i]) < 1e-300) {
+          if (bad.q[i] > box.hi[i] || bad.q[i] < box.lo[i]) return false;
+          continue;
+        }
+        double a = bad.s + (box.lo[i] - bad.q[i]) / g[i];
+        double b = bad.s + (box.hi[i] - bad.q[i]) / g[i];
+        if (a > b) std::swap(a, b);
+        mlo = std::max(mlo, a);
+        mhi = std::min(mhi, b);
+        band_s = std::min(band_s, box.band[i] / std::abs(g[i]));
+      }
+      if (mlo > mhi) return false;
+      next = std::clamp(target, mlo, mhi);
+      const double inset = std::min(1e-6 * band_s, 0.5 * (mhi - mlo));
+      if (next >= mhi) next = mhi - inset;
+      if (next <= mlo) next = mlo + inset;
+      if ((next - bad.s) * bad_dir <= 0.0) {
+        // The model disagrees with the repair direction: take a cautious step that way.
+        next = bad.s + bad_dir * std::max(std::abs(next - bad.s), 1e-3 * band_s);
+      }
+      next = std::clamp(next, lo, hi);
+      if (next == bad.s) return false;
+    }
+    Evaluate(*h.p0, next, &x);
+    mx = miss(x);
+    if (mx.worst <= 0.0) {
+      if (!good || std::abs(x.s - target) < std::abs(good->s - target)) good = x;
+      kept = 0;
+    } else if (good) {
+      // Regula falsi: keep the bracket [good, bad] around the boundary.
+      if ((x.s - good->s) * (bad.s - good->s) > 0.0) {
+        bad = x;
+        bad_miss = mx;
+        ++kept;
+      }
+    } else {
+      const int dir = repair(x, mx);
+      if (dir == bad_dir && (x.s - bad.s) * bad_dir > 0.0) {
+        bad = x;  // still on the target's side: walk on
+        bad_miss = mx;
+      } else if (dir == 0) {
+        return false;
+      } else {
+        far = x.s;  // past the feasible set, if there is one between
+      }
+    }
+  }
+  if (!good) return false;
+  *out = *good;
+  *by = {bad_miss.upper ? box.hi_kind[bad_miss.axis] : box.lo_kind[bad_miss.axis],
+         static_cast<std::int8_t>(bad_miss.axis)};
+  return true;
+}
+
+bool Planner::Produce(const History& h, Mode mode, Step* out) {
+  const Interval t = Tangential(h);
+  if (t.lo > t.hi) return false;
+  Box box;
+  if (!MakeBox(h, &box)) return false;
+  const Effective e = Available(h, box, t);
+  double target;
+  LimiterId by;
+  if (mode == Mode::kGreedy) {
+    const auto [soft, soft_by] = LookAhead(h, e);
+    target = t.hi;
+    by = t.hi_by;
+    if (soft < target) {
+      target = std::max(soft, t.lo);
+      by = soft > t.lo ? soft_by : t.lo_by;
+    }
+  } else {
+    const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
+    const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
+    const double a =
+        StopAcceleration(v0, a0, e.jerk * kLawMargin, e.acceleration * kLawMargin, dt_);
+    target = s0 + (v0 + a * dt_) * dt_;
+    if (std::abs(target - s0) <= 1e-15 * (1.0 + std::abs(s0))) target = s0;
+    target = std::clamp(target, t.lo, t.hi);
+    by = {Limiter::kBackOff, -1};
+  }
+  LimiterId axis_by = by;
+  if (!Solve(h, box, t.lo, t.hi, target, out, &axis_by)) return false;
+  out->limiter = out->s == target ? by : axis_by;
+  if (out->s == h.p0->s && AtRest(h)) out->limiter = {Limiter::kRest, -1};
+  return true;
+}
+
+// Runs the brake law from step m (steps after m ignored) until rest. On success, `first` is its
+// first step.
+bool Planner::Brake(long m, Step* first) {
+  ++summary_.brake_tests;
+  Step ring[3] = {At(m - 2), At(m - 1), At(m)};
+  int newest = 2;
+  const long max_steps = 10000000;
+  for (long k = 0; k < max_steps; ++k) {
+    const History h{&ring[(newest + 1) % 3], &ring[(newest + 2) % 3], &ring[newest]};
+    if (AtRest(h)) return k > 0 || true;
+    Step next;
+    if (!Produce(h, Mode::kBrake, &next)) return false;
+    next.limiter = {Limiter::kBackOff, -1};
+    if (k == 0) *first = next;
+    newest = (newest + 1) % 3;
+    ring[newest] = next;
+  }
+  return false;
+}
+
+void Planner::BackOff(long failed) {
+  ++summary_.back_offs;
+  const long lo = std::max(safe_, committed_ - 1);
+  long hi = failed - 1;
+  Step first;
+  long good = -1, bad = -1;
+  // Gallop back from the failure, then bisect: the latest m from which the brake law stops.
+  for (long stride = 1, m = hi;; stride *= 2) {
+    if (m <= lo) {
+      if (!Brake(lo, &first)) {
+        FailAt(At(lo),
+               "no stop to rest within the limits exists from here (this should not "
+               "happen: please report it with the job)");
+      }
+      good = lo;
+      break;
+    }
+    Step candidate;
+    if (Brake(m, &candidate)) {
+      good = m;
+      first = candidate;
+      break;
+    }
+    bad = m;
+    m = hi - stride;
+  }
+  if (bad > good) {
+    while (bad - good > 1) {
+      const long mid = good + (bad - good) / 2;
+      Step candidate;
+      if (Brake(mid, &candidate)) {
+        good = mid;
+        first = candidate;
+      } else {
+        bad = mid;
+      }
+    }
+  }
+  // Keep steps up to `good`, brake one period there, and go on at s_max.
+  steps_.resize(static_cast<std::size_t>(good - base_ + 1));
+  const History h = HistoryAt(good);
+  if (AtRest(h) && first.s == h.p0->s) {
+    // Stuck at rest: no step forward is feasible from here.
+    if (h.p0->s == last_stuck_s_) {
+      if (++stuck_count_ > 3) {
+        Box box;
+        const bool boxed = MakeBox(h, &box);
+        FailAt(*h.p0, boxed ? "no step forward respects the axis limits even from rest (the path "
+                              "needs an axis to jump: a singularity or a position discontinuity)"
+                            : "the axis limits leave no position for the next step");
+      }
+    } else {
+      last_stuck_s_ = h.p0->s;
+      stuck_count_ = 0;
+    }
+  }
+  steps_.push_back(first);
+  safe_ = good + 1;
+}
+
+void Planner::Commit(long upto) {
+  upto = std::min(upto, Last());
+  for (long g = committed_; g <= upto; ++g) {
+    const Step& step = At(g);
+    Setpoint sp;
+    sp.index = g;
+    sp.s = step.s;
+    sp.q = step.q;
+    sp.state = step.state;
+    sp.limiter = step.limiter;
+    sink_.Accept(sp);
+    ++summary_.setpoints;
+    ++summary_.limited_by[static_cast<int>(step.limiter.kind)];
+  }
+  committed_ = std::max(committed_, upto + 1);
+  // Keep the three latest committed steps: the history of the first open one.
+  while (base_ < committed_ - 3) {
+    steps_.pop_front();
+    ++base_;
+  }
+}
+
+VpopSummary Planner::Run() {
+  length_ = path_.Length();
+  Step start;
+  start.state = path_.Start();
+  const PathSample s0 = path_.At(start.state, 0.0);
+  start.state = s0.state;
+  start.s = 0.0;
+  const InverseResult r = machine_.Inverse(s0.pose, nullptr, &start.q);
+  if (r.status != InverseStatus::kOk) FailAt(start, DescribeInverseFailure(machine_, r));
+  start.limiter = {Limiter::kStart, -1};
+  steps_.push_back(start);
+  const long check_every =
+      static_cast<long>(std::min<std::size_t>(o_.commit_horizon / 4, 1L << 40));
+
+  for (;;) {
+    const long j = Last();
+    const History h = HistoryAt(j);
+    if (Finished(h)) break;
+    Step next;
+    if (Produce(h, Mode::kGreedy, &next)) {
+      steps_.push_back(next);
+    } else {
+      BackOff(j + 1);
+    }
+    if (static_cast<std::size_t>(Last() - committed_) > o_.commit_horizon) {
+      // Prove a stop from the newest step so that the old ones can be handed over.
+      Step first;
+      if (Last() - safe_ >= check_every) {
+        if (Brake(Last(), &first)) {
+          safe_ = Last();
+        } else {
+          BackOff(Last() + 1);
+        }
+      }
+      Commit(std::min(safe_, Last() - static_cast<long>(o_.commit_horizon) / 2));
+    }
+  }
+  // Two more periods at rest so that a reader sees zero velocity and acceleration at the end.
+  for (int k = 0; k < 2; ++k) {
+    Step rest = steps_.back();
+    rest.limiter = {Limiter::kRest, -1};
+    steps_.push_back(rest);
+  }
+  long last_move = 0;
+  for (long g = Last(); g > base_; --g) {
+    if (At(g).s != At(g - 1).s || At(g).q != At(g - 1).q) {
+      last_move = g;
+      break;
+    }
+  }
+  summary_.end_s = steps_.back().s;
+  Commit(Last());
+  summary_.motion_time_s = static_cast<double>(last_move) * dt_;
+  return summary_;
+}
+
+}  // namespace
+
+VpopSummary PlanVpop(const PathSource& path, const Machine& machine, const VpopOptions& options,
+                     SetpointSink& sink) {
+  Planner planner(path, machine, options, sink);
+  return planner.Run();
+}
+
+}  // namespace dtis::interp

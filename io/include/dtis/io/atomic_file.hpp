@@ -1,0 +1,28 @@
+// Output written to a temporary file beside the target and renamed over it on Commit(), so a failed
+// run never leaves a half file behind (DESIGN.md, Conventions).
+#pragma once
+
+#include <cstdio>
+#include <string>
+#include <string_view>
+
+namespace dtis::io {
+
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::string path);  // throws dtis::Error if the folder is not writable
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile();  // removes the temporary file unless committed
+
+  void Write(std::string_view text);
+  void Commit();  // flush, sync, rename; throws dtis::Error on failure
+  const std::string& Path() const { return path_; }
+
+ private:
+  std::string path_, temp_;
+  std::FILE* file_ = nullptr;
+  bool committed_ = false;
+};
+
+}  // namespace dtis::io

@@ -1,0 +1,130 @@
+#include "dtis/io/setpoint_file.hpp"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::io {
+
+interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& source) {
+  interp::SetpointTable table;
+  std::size_t pos = 0;
+  long line = 0;
+  const auto next_line = [&](std::string_view* out) {
+    if (pos >= text.size()) return false;
+    std::size_t end = text.find('\n', pos);
+    if (end == std::string_view::npos) end = text.size();
+    *out = text.substr(pos, end - pos);
+    if (!out->empty() && out->back() == '\r') out->remove_suffix(1);
+    pos = end + 1;
+    ++line;
+    return true;
+  };
+  std::string_view header;
+  if (!next_line(&header)) throw Error("{}: empty file; expected a header 't,X,Y,Z...'", source);
+  std::vector<std::string> names;
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = header.find(',', start);
+    names.emplace_back(
+        header.substr(start, comma == std::string_view::npos ? comma : comma - start));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  if (names.size() < 2 || names[0] != "t") {
+    throw Error("{}:1: header must start with 't' then the axis names, got '{}'", source, header);
+  }
+  for (std::size_t i = 1; i < names.size(); ++i) {
+    if (names[i].empty()) throw Error("{}:1: column {} of the header has no name", source, i + 1);
+  }
+  table.axes.assign(names.begin() + 1, names.end());
+  table.columns.resize(table.axes.size());
+  std::string_view row;
+  while (next_line(&row)) {
+    if (row.empty()) continue;
+    std::size_t column = 0;
+    const char* p = row.data();
+    const char* end = row.data() + row.size();
+    while (true) {
+      double value = 0.0;
+      const auto [ptr, ec] = std::from_chars(p, end, value);
+      if (ec != std::errc() || !std::isfinite(value)) {
+        throw Error("{}:{}: column {} ('{}') is not a finite number", source, line, column + 1,
+                    names[std::min(column, names.size() - 1)]);
+      }
+      if (column >= names.size()) {
+        throw Error("{}:{}: {} values or more; the header has {} columns", source, line, column + 1,
+                    names.size());
+      }
+      if (column == 0) {
+        table.t.push_back(value);
+      } else {
+        table.columns[column - 1].push_back(value);
+      }
+      ++column;
+      p = ptr;
+      if (p == end) break;
+      if (*p != ',') {
+        throw Error("{}:{}: unexpected character '{}' after column {}", source, line, *p, column);
+      }
+      ++p;
+    }
+    if (column != names.size()) {
+      throw Error("{}:{}: {} values; the header has {} columns", source, line, column,
+                  names.size());
+    }
+  }
+  if (table.t.empty()) throw Error("{}: no setpoint rows after the header", source);
+  return table;
+}
+
+interp::SetpointTable ReadSetpoints(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error("{}: cannot open the setpoint file; check the path", path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseSetpoints(text.str(), path);
+}
+
+void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {
+  AtomicFile out(path);
+  fmt::memory_buffer buf;
+  fmt::format_to(std::back_inserter(buf), "t");
+  for (const auto& a : table.axes) fmt::format_to(std::back_inserter(buf), ",{}", a);
+  buf.push_back('\n');
+  for (std::size_t r = 0; r < table.Rows(); ++r) {
+    fmt::format_to(std::back_inserter(buf), "{}", table.t[r]);
+    for (const auto& c : table.columns) fmt::format_to(std::back_inserter(buf), ",{}", c[r]);
+    buf.push_back('\n');
+    if (buf.size() > (1u << 20)) {
+      out.Write({buf.data(), buf.size()});
+      buf.clear();
+    }
+  }
+  out.Write({buf.data(), buf.size()});
+  out.Commit();
+}
+
+TableSink::TableSink(const Machine& machine, double period_s) : period_(period_s) {
+  for (const Axis& a : machine.Axes()) {
+    table_.axes.push_back(a.name);
+    rotary_.push_back(a.rotary);
+  }
+  table_.columns.resize(table_.axes.size());
+}
+
+void TableSink::Accept(const interp::Setpoint& sp) {
+  table_.t.push_back(static_cast<double>(sp.index) * period_);
+  for (std::size_t i = 0; i < rotary_.size(); ++i) {
+    const double v = sp.q[static_cast<Eigen::Index>(i)];
+    table_.columns[i].push_back(rotary_[i] ? v * (180.0 / std::numbers::pi) : v);
+  }
+  s_.push_back(sp.s);
+  limiters_.push_back(sp.limiter);
+}
+
+}  // namespace dtis::io
