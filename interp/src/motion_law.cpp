@@ -41,7 +41,7 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
   while (v != 0.0 || a != 0.0) {
     double next = StopAcceleration(v, a, jerk, acceleration, dt);
     double v_next = v + next * dt;
-    if (v_next < -tiny) return {std::numeric_limits<double>::infinity(), periods};
+    if (v_next < -tiny) return {distance, periods, true};
     if (std::abs(v_next) <= tiny) {
       v_next = 0.0;
       next = -v / dt;

@@ -372,27 +372,46 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
       std::min(MaxAccelerationUnderCap(v0, e.feed, jerk * kReleaseJerkFraction, dt_), acceleration);
   LimiterId by{Limiter::kFeedLookAhead, -1};
   if (length_) {
-    const double a_pos = std::max(a_hi, 0.0);
+    // Skip the stop simulation while the end is farther than any stop from the fastest next state.
+    const double a_pos = std::clamp(a_hi, 0.0, std::max(a0, 0.0) + jerk * dt_);
     const double v_top = v0 + a_pos * dt_ + ReleaseGain(a_pos, jerk, dt_);
     const double t_stop =
-        v_top / acceleration + 2.0 * std::sqrt(v_top / jerk) + std::max(a0, 0.0) / jerk + 4.0 * dt_;
+        v_top / acceleration + 2.0 * std::sqrt(v_top / jerk) + a_pos / jerk + 4.0 * dt_;
     if (s0 + v_top * (t_stop + dt_) >= *length_) {
       const auto reach = [&](double a) {
         const double v = v0 + a * dt_;
-        if (v < 0.0) return s0;
-        return s0 + v * dt_ + StopDistanceFrom(v, a, jerk, acceleration, dt_).distance;
+        if (v < 0.0) return -std::numeric_limits<double>::infinity();
+        // Planned with the softer law, so that following it leaves headroom for rounding. A state
+        // braked too hard counts as short of the end (monotone in a: more braking, less reach).
+        const StopDistance stop = StopDistanceFrom(v, a, jerk * kReleaseJerkFraction,
+                                                   acceleration * kReleaseJerkFraction, dt_);
+        return stop.reverses ? -std::numeric_limits<double>::infinity()
+                             : s0 + v * dt_ + stop.distance;
       };
-      if (reach(a_hi) > *length_) {
-        double lo = std::max(a0 - jerk * dt_, -acceleration);
-        lo = std::max(lo, -v0 / dt_);
-        double hi = a_hi;
-        if (reach(lo) > *length_) {
-          a_hi = lo;
+      double hi = a_hi, f_hi = reach(hi) - *length_;
+      if (f_hi > 0.0) {
+        double lo = std::max({a0 - jerk * dt_, -acceleration, -v0 / dt_});
+        double f_lo = reach(lo) - *length_;
+        if (f_lo > 0.0) {
+          a_hi = lo;  // cannot stop in time even braking hardest: brake hardest
         } else {
-          // Bisection on the acceleration: reach() is increasing in it.
+          // The largest a with reach(a) <= L: Illinois regula falsi, bisection where reach is -inf.
+          int side = 0;
           for (int k = 0; k < 60 && hi - lo > 1e-12 * (1.0 + std::abs(hi)); ++k) {
-            const double mid = 0.5 * (lo + hi);
-            (reach(mid) <= *length_ ? lo : hi) = mid;
+            double mid =
+                std::isfinite(f_lo) ? lo + (hi - lo) * (-f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
+            if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
+            const double f_mid = reach(mid) - *length_;
+            if (f_mid <= 0.0) {
+              lo = mid, f_lo = f_mid;
+              if (side == -1) f_hi *= 0.5;
+              side = -1;
+            } else {
+              hi = mid, f_hi = f_mid;
+              if (side == 1 && std::isfinite(f_lo)) f_lo *= 0.5;
+              side = 1;
+            }
+            if (f_lo > -1e-12 && f_lo <= 0.0) break;
           }
           a_hi = lo;
         }

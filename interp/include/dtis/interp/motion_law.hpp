@@ -27,11 +27,14 @@ double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt);
 // -acceleration, and release (at kReleaseJerkFraction of jerk) so that v and a reach zero together.
 double StopAcceleration(double v, double a, double jerk, double acceleration, double dt);
 
-// Distance travelled by StopAcceleration from (v, a) until rest, and the number of periods. Returns
-// infinity if the law cannot stop (v would turn negative).
+// Distance travelled by StopAcceleration from (v, a) until rest, and the number of periods.
+// `reverses` is set when the state is braked too hard to come to rest without moving backwards
+// (the acceleration cannot be released before v turns negative); the distance is then the one
+// travelled until v reaches zero.
 struct StopDistance {
   double distance;
   int periods;
+  bool reverses = false;
 };
 StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt);
 
