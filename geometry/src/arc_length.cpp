@@ -37,23 +37,23 @@ double Horner(const double* c, double t) {
 
 ArcLengthMap::ArcLengthMap(const Evaluator& derivatives, const std::vector<double>& breaks,
                            const ArcLengthOptions& options)
-    : derivatives_(derivatives), options_(options) {
-  nodes_.push_back(MakeNode(breaks.front(), 0.0));
+    : derivatives_(derivatives), options_(options), breaks_(breaks) {
+  nodes_.push_back(MakeNode(breaks.front(), 0.0, false));
   for (std::size_t i = 1; i < breaks.size(); ++i) {
-    const double s = nodes_.back().s + Integrate(nodes_.back().u, breaks[i]);
-    Build(nodes_.back(), MakeNode(breaks[i], s), 0);
+    const Node a = nodes_.back();
+    Build(a, MakeNode(breaks[i], a.s + Integrate(a.u, breaks[i]), true), 0);
   }
 }
 
 double ArcLengthMap::Speed(double u) const {
   Eigen::Vector3d d[2];
-  derivatives_(u, 1, d);
+  derivatives_(u, 1, d, false);
   return d[1].norm();
 }
 
-ArcLengthMap::Node ArcLengthMap::MakeNode(double u, double s) const {
+ArcLengthMap::Node ArcLengthMap::MakeNode(double u, double s, bool from_left) const {
   Eigen::Vector3d d[3];
-  derivatives_(u, 2, d);
+  derivatives_(u, 2, d, from_left);
   const double speed = d[1].norm();
   if (speed <= 0.0) return {s, u, 0.0, 0.0};  // a stationary point: the Hermite check will split
   const double du_ds = 1.0 / speed;
@@ -61,6 +61,18 @@ ArcLengthMap::Node ArcLengthMap::MakeNode(double u, double s) const {
 }
 
 double ArcLengthMap::Integrate(double u0, double u1) const {
+  if (u1 < u0) return -Integrate(u1, u0);
+  double total = 0.0, from = u0;
+  for (const double b : breaks_) {
+    if (b <= from) continue;
+    if (b >= u1) break;
+    total += IntegrateSmooth(from, b);
+    from = b;
+  }
+  return total + IntegrateSmooth(from, u1);
+}
+
+double ArcLengthMap::IntegrateSmooth(double u0, double u1) const {
   // Adaptive 8-point Gauss-Legendre: accept when both halves agree with the whole.
   const auto gauss = [this](double a, double b) {
     const double m = 0.5 * (a + b), r = 0.5 * (b - a);
@@ -93,9 +105,10 @@ double ArcLengthMap::Integrate(double u0, double u1) const {
 
 void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
   const double h = b.s - a.s;
+  const Node b_right = MakeNode(b.u, b.s, false);
   if (h <= 0.0) {  // a zero-length piece (repeated poles): it holds u constant
     pieces_.push_back(Piece{a.s, 0.0, {a.u, 0, 0, 0, 0, 0}});
-    nodes_.push_back(b);
+    nodes_.push_back(b_right);
     return;
   }
   const auto coeff = HermiteCoefficients(a.u, a.du_ds, a.d2u_ds2, b.u, b.du_ds, b.d2u_ds2, h);
@@ -110,9 +123,9 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
   }
   if (worst > options_.tolerance_mm && depth < options_.max_depth && b.u - a.u > 1e-15) {
     const double um = 0.5 * (a.u + b.u);
-    const Node m = MakeNode(um, a.s + Integrate(a.u, um));
-    Build(a, m, depth + 1);
-    Build(m, b, depth + 1);
+    const double sm = a.s + Integrate(a.u, um);
+    Build(a, MakeNode(um, sm, true), depth + 1);
+    Build(nodes_.back(), b, depth + 1);
     return;
   }
   if (!std::isfinite(worst)) {
@@ -125,7 +138,7 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
     pieces_.push_back(piece);
     max_error_mm_ = std::max(max_error_mm_, worst);
   }
-  nodes_.push_back(b);
+  nodes_.push_back(b_right);
 }
 
 double ArcLengthMap::Parameter(double s, int* hint) const {

@@ -145,9 +145,16 @@ BSplineCurve::BSplineCurve(BSplineCurveData data, const std::string& what)
   }
 }
 
-int BSplineCurve::FindSpan(double u) const {
+int BSplineCurve::FindSpan(double u, bool from_left) const {
   const int n = static_cast<int>(poles_.size()) - 1;
   const int p = degree_;
+  if (from_left && u > knots_[static_cast<std::size_t>(p)]) {
+    // The span whose half-open interval (knots[span], knots[span + 1]] holds u.
+    const auto first = knots_.begin() + p;
+    const auto last = knots_.begin() + n + 2;
+    const int span = static_cast<int>(std::lower_bound(first, last, u) - knots_.begin()) - 1;
+    return std::clamp(span, p, n);
+  }
   if (u >= knots_[static_cast<std::size_t>(n + 1)]) {
     int span = n;
     while (span > p &&
@@ -182,10 +189,10 @@ Eigen::Vector3d BSplineCurve::Point(double u) const {
   return cw.head<3>() / cw.w();
 }
 
-void BSplineCurve::Derivatives(double u, int order, Eigen::Vector3d* d) const {
+void BSplineCurve::Derivatives(double u, int order, Eigen::Vector3d* d, bool from_left) const {
   order = std::clamp(order, 0, 3);
   u = std::clamp(u, FirstParameter(), LastParameter());
-  const int span = FindSpan(u);
+  const int span = FindSpan(u, from_left);
   const int n = std::min(order, degree_);
   Table ders{};
   BasisDerivatives(knots_, span, u, degree_, n, ders);

@@ -8,7 +8,9 @@ namespace dtis::geometry {
 namespace {
 
 ArcLengthMap::Evaluator Evaluate(const BSplineCurve& curve) {
-  return [&curve](double u, int order, Eigen::Vector3d* d) { curve.Derivatives(u, order, d); };
+  return [&curve](double u, int order, Eigen::Vector3d* d, bool from_left) {
+    curve.Derivatives(u, order, d, from_left);
+  };
 }
 
 }  // namespace

@@ -49,7 +49,7 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
     distance += v_next * dt;
     v = v_next;
     a = next;
-    if (++periods > 10000000) return {std::numeric_limits<double>::infinity(), periods};
+    if (++periods > 200000) return {std::numeric_limits<double>::infinity(), periods};
   }
   return {distance, periods};
 }

@@ -177,7 +177,9 @@ class Planner {
   bool Produce(const History& h, Mode mode, Step* out);
 
   // ---- back-off
-  bool Brake(long m, Step* first);
+  // Runs the brake law from step m until rest, or (when `pass_s` is finite) until it has carried
+  // the motion `margin` periods beyond arc length `pass_s` without an empty step.
+  bool Brake(long m, Step* first, double pass_s = INFINITY, long margin = 0);
   void BackOff(long failed);
   void Commit(long upto);
 
@@ -203,6 +205,7 @@ class Planner {
   long base_ = 0;       // global index of steps_.front()
   long committed_ = 0;  // steps with a global index below this were handed to the sink
   long safe_ = 0;       // latest step from which a stop to rest is proven
+  long hint_ = 0;       // latest step whose brake law got past the last failure (>= safe_)
   VpopSummary summary_;
   double last_stuck_s_ = -1.0;
   int stuck_count_ = 0;
@@ -348,17 +351,24 @@ Effective Planner::Available(const History& h, const Box& box, const Interval& t
     up = std::min(up, (b - natural) / d3);
     down = std::min(down, (natural - a) / d3);
   }
-  // Symmetric and never below a sliver of the nominal jerk: the laws divide by it, and the exact
-  // search repairs whatever the estimate misses.
-  double nominal = INFINITY;
+  // Symmetric, and never below a quarter of the nominal path jerk: where curvature alone nearly
+  // saturates an axis one side of its interval is almost empty, and a law planned with that
+  // sliver would crawl. The laws only propose; the exact search and the back-off enforce the
+  // limits.
+  double nominal = INFINITY, nominal_acceleration = INFINITY;
   for (int i = 0; i < n_; ++i) {
-    if (std::abs(g[i]) >= 1e-9) nominal = std::min(nominal, limits_[i].j / std::abs(g[i]));
+    if (std::abs(g[i]) < 1e-9) continue;
+    nominal = std::min(nominal, limits_[i].j / std::abs(g[i]));
+    nominal_acceleration = std::min(nominal_acceleration, limits_[i].a / std::abs(g[i]));
   }
   if (!std::isfinite(nominal))
     nominal = std::isfinite(o_.tangential_jerk_mm_s3) ? o_.tangential_jerk_mm_s3 : 1e15;
-  e.jerk = std::clamp(std::min(up, down), 1e-3 * nominal, nominal);
+  e.jerk = std::clamp(std::min(up, down), 0.25 * nominal, nominal);
+  // The same floor for the acceleration, whose centripetal part can take a whole axis limit.
+  if (std::isfinite(nominal_acceleration)) {
+    e.acceleration = std::max(e.acceleration, 0.25 * nominal_acceleration);
+  }
   if (!std::isfinite(e.acceleration)) e.acceleration = 1e12;
-  e.acceleration = std::max(e.acceleration, 1e-3 * e.jerk * dt_);
   return e;
 }
 
@@ -585,14 +595,16 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
 
 // Runs the brake law from step m (steps after m ignored) until rest. On success, `first` is its
 // first step.
-bool Planner::Brake(long m, Step* first) {
+bool Planner::Brake(long m, Step* first, double pass_s, long margin) {
   ++summary_.brake_tests;
   Step ring[3] = {At(m - 2), At(m - 1), At(m)};
   int newest = 2;
+  long beyond = 0;
   const long max_steps = 10000000;
   for (long k = 0; k < max_steps; ++k) {
     const History h{&ring[(newest + 1) % 3], &ring[(newest + 2) % 3], &ring[newest]};
-    if (AtRest(h)) return k > 0 || true;
+    if (AtRest(h)) return true;
+    if (h.p0->s > pass_s && ++beyond > margin) return true;
     Step next;
     if (!Produce(h, Mode::kBrake, &next)) return false;
     next.limiter = {Limiter::kBackOff, -1};
@@ -603,43 +615,52 @@ bool Planner::Brake(long m, Step* first) {
   return false;
 }
 
+// The dichotomy of §2.3: the latest step m from which the brake law gets through, found by
+// galloping back from the failure and bisecting. A brake test counts as through once it has
+// carried the motion past the failed arc length with a margin (a hint that m is safe); only when
+// no step after the last hint gets through are full stops to rest required, down to the last step
+// from which a stop is proven.
 void Planner::BackOff(long failed) {
   ++summary_.back_offs;
-  const long lo = std::max(safe_, committed_ - 1);
-  long hi = failed - 1;
-  Step first;
-  long good = -1, bad = -1;
-  // Gallop back from the failure, then bisect: the latest m from which the brake law stops.
-  for (long stride = 1, m = hi;; stride *= 2) {
-    if (m <= lo) {
-      if (!Brake(lo, &first)) {
-        FailAt(At(lo),
-               "no stop to rest within the limits exists from here (this should not "
-               "happen: please report it with the job)");
-      }
-      good = lo;
-      break;
-    }
-    Step candidate;
-    if (Brake(m, &candidate)) {
-      good = m;
-      first = candidate;
-      break;
-    }
-    bad = m;
-    m = hi - stride;
-  }
-  if (bad > good) {
-    while (bad - good > 1) {
-      const long mid = good + (bad - good) / 2;
+  const long hi = failed - 1;
+  const double pass_s = At(hi).s;
+  const auto search = [&](long lo, double pass, long margin, long* good, Step* first) {
+    long bad = -1;
+    for (long stride = 1, m = hi;; stride *= 2) {
+      if (m <= lo) m = lo;
       Step candidate;
-      if (Brake(mid, &candidate)) {
-        good = mid;
-        first = candidate;
+      if (Brake(m, &candidate, pass, margin)) {
+        *good = m;
+        *first = candidate;
+        break;
+      }
+      bad = m;
+      if (m == lo) return false;
+      m = hi - stride;
+    }
+    while (bad > *good + 1) {
+      const long mid = *good + (bad - *good) / 2;
+      Step candidate;
+      if (Brake(mid, &candidate, pass, margin)) {
+        *good = mid;
+        *first = candidate;
       } else {
         bad = mid;
       }
     }
+    return true;
+  };
+  long good = -1;
+  Step first;
+  const long margin = std::max<long>(32, 2 * (hi - hint_));
+  if (!search(std::max(hint_, safe_), pass_s, margin, &good, &first)) {
+    const long floor = std::max(safe_, committed_ - 1);
+    if (!search(floor, INFINITY, 0, &good, &first)) {
+      FailAt(At(floor),
+             "no stop to rest within the limits exists from here (this should not "
+             "happen: please report it with the job)");
+    }
+    safe_ = good + 1;
   }
   // Keep steps up to `good`, brake one period there, and go on at s_max.
   steps_.resize(static_cast<std::size_t>(good - base_ + 1));
@@ -660,7 +681,7 @@ void Planner::BackOff(long failed) {
     }
   }
   steps_.push_back(first);
-  safe_ = good + 1;
+  hint_ = good + 1;
 }
 
 void Planner::Commit(long upto) {
@@ -714,7 +735,7 @@ VpopSummary Planner::Run() {
       Step first;
       if (Last() - safe_ >= check_every) {
         if (Brake(Last(), &first)) {
-          safe_ = Last();
+          safe_ = hint_ = Last();
         } else {
           BackOff(Last() + 1);
         }

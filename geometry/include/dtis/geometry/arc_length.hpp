@@ -17,8 +17,9 @@ struct ArcLengthOptions {
 
 class ArcLengthMap {
  public:
-  // `derivatives(u, order, d)` fills d[0..order] with the curve point and its u-derivatives.
-  using Evaluator = std::function<void(double, int, Eigen::Vector3d*)>;
+  // `derivatives(u, order, d, from_left)` fills d[0..order] with the curve point and its
+  // u-derivatives (at a break, those of the piece on its left when `from_left`).
+  using Evaluator = std::function<void(double, int, Eigen::Vector3d*, bool)>;
 
   // `breaks` are the parameters where the curve's derivatives may jump (its distinct knots),
   // first and last included.
@@ -31,7 +32,8 @@ class ArcLengthMap {
   // is updated so that walking along the curve costs O(1).
   double Parameter(double s, int* hint) const;
 
-  // The exact arc length between two parameters (Gauss-Legendre, adaptive), for checks.
+  // The exact arc length between two parameters (adaptive Gauss-Legendre on each piece between
+  // breaks, where the speed |C'| may jump).
   double Integrate(double u0, double u1) const;
 
   // The largest |s(u(s)) - s| seen while building, mm.
@@ -49,12 +51,17 @@ class ArcLengthMap {
     double s0, inv_h;
     double c[6];  // u = c0 + c1 t + ... + c5 t^5, t = (s - s0) * inv_h
   };
-  Node MakeNode(double u, double s) const;
+  Node MakeNode(double u, double s, bool from_left) const;
+  // Interpolates between a (right-sided) and b (left-sided), appending the pieces and b's
+  // right-sided twin.
   void Build(const Node& a, const Node& b, int depth);
   double Speed(double u) const;
 
+  double IntegrateSmooth(double u0, double u1) const;
+
   Evaluator derivatives_;
   ArcLengthOptions options_;
+  std::vector<double> breaks_;
   std::vector<Node> nodes_;
   std::vector<Piece> pieces_;
   double max_error_mm_ = 0.0;

@@ -37,11 +37,13 @@ class BSplineCurve {
   // The point at u (u is clamped to the domain).
   Eigen::Vector3d Point(double u) const;
 
-  // The point and its derivatives with respect to u up to `order` (<= 3): d[0] .. d[order].
-  void Derivatives(double u, int order, Eigen::Vector3d* d) const;
+  // The point and its derivatives with respect to u up to `order` (<= 3): d[0] .. d[order]. At a
+  // knot the derivatives are those of the span on its right, or on its left when `from_left`.
+  void Derivatives(double u, int order, Eigen::Vector3d* d, bool from_left = false) const;
 
-  // Index of the knot span containing u: knots[span] <= u < knots[span + 1] (last span closed).
-  int FindSpan(double u) const;
+  // Index of the knot span containing u: knots[span] <= u < knots[span + 1] (last span closed);
+  // with `from_left`, knots[span] < u <= knots[span + 1] (first span closed).
+  int FindSpan(double u, bool from_left = false) const;
 
  private:
   int degree_;

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Bad input on the command line: one clear message naming the file, line or key, a non-zero exit,
+# and no output file left behind.
+set -uo pipefail
+dtis=$1
+root=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+failures=0
+expect() {  # expect NAME FRAGMENT -- command...
+  local name=$1 fragment=$2
+  shift 3
+  local err
+  err=$("$@" 2>&1 >/dev/null)
+  local rc=$?
+  if [ $rc -eq 0 ]; then echo "FAIL $name: exit 0"; failures=$((failures + 1)); return; fi
+  if [[ "$err" != *"$fragment"* ]]; then
+    echo "FAIL $name: message '$err' lacks '$fragment'"; failures=$((failures + 1)); return
+  fi
+  if ls "$work"/out* >/dev/null 2>&1 || ls "$work"/.out* >/dev/null 2>&1; then
+    echo "FAIL $name: left an output file"; failures=$((failures + 1)); rm -f "$work"/out* "$work"/.out*; return
+  fi
+  echo "ok $name"
+}
+cp "$root"/samples/machines/*.toml "$work/"
+cat > "$work/base.toml" <<JOB
+machine = "mikron_ucp710_xyz.toml"
+feed_mm_min = 5000
+[path]
+kind = "line"
+from = [0, 0, 0]
+to = [100, 0, 0]
+JOB
+expect missing-job "no-such.toml: cannot open" -- "$dtis" run "$work/no-such.toml" -o "$work/out.csv"
+printf 'period_ms = -1\n' | cat - "$work/base.toml" > "$work/dt.toml"
+expect bad-period "dt.toml:1: key 'period_ms': expected a number > 0, got -1" -- "$dtis" run "$work/dt.toml" -o "$work/out.csv"
+printf 'speed = 3\n' | cat "$work/base.toml" - > "$work/unknown.toml"
+expect unknown-key "unknown.toml:7: unknown key 'speed'" -- "$dtis" run "$work/unknown.toml" -o "$work/out.csv"
+sed 's/jerk = 5$/jerk = nan/' "$work/mikron_ucp710_xyz.toml" > "$work/nanjerk.toml"
+sed 's/mikron_ucp710_xyz.toml/nanjerk.toml/' "$work/base.toml" > "$work/nan.toml"
+expect nan-limit "nanjerk.toml:20: key 'axes.X.jerk': expected a finite number" -- "$dtis" run "$work/nan.toml" -o "$work/out.csv"
+sed 's/velocity = 30$/velocity = 0/' "$work/mikron_ucp710_xyz.toml" > "$work/zerov.toml"
+sed 's/mikron_ucp710_xyz.toml/zerov.toml/' "$work/base.toml" > "$work/zero.toml"
+expect zero-limit "key 'axes.X.velocity': expected a number > 0, got 0" -- "$dtis" run "$work/zero.toml" -o "$work/out.csv"
+cat > "$work/knots.toml" <<CURVE
+degree = 3
+knots = [0, 0, 0, 0, 0.5, 0.25, 1, 1, 1, 1]
+poles = [[0, 0], [1, 1], [2, 0], [3, 1], [4, 0], [5, 1]]
+CURVE
+sed 's/kind = "line"/kind = "curve"\nfile = "knots.toml"/; /^from/d; /^to/d' "$work/base.toml" > "$work/curvejob.toml"
+expect bad-knots "knots.toml:2: curve: knots must not decrease" -- "$dtis" run "$work/curvejob.toml" -o "$work/out.csv"
+sed 's/^knots = .*/knots = [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1]/; $a weights = [1, 1, -1, 1, 1, 1]' "$work/knots.toml" > "$work/w.toml"
+sed 's/knots.toml/w.toml/' "$work/curvejob.toml" > "$work/wjob.toml"
+expect bad-weight "w.toml:4: curve: weight 2 is -1" -- "$dtis" run "$work/wjob.toml" -o "$work/out.csv"
+printf 't,X,Y,Z\n0,0,0,0\n0.001,abc,0,0\n' > "$work/bad.csv"
+expect bad-csv "bad.csv:3: column 2 ('X') is not a finite number" -- "$dtis" verify "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
+expect no-args "JOB is required" -- "$dtis" run
+echo "$((9 - failures)) passed, $failures failed"
+[ $failures -eq 0 ]

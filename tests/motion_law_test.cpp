@@ -1,0 +1,73 @@
+// The discrete jerk-limited laws: the stop law reaches rest within its limits from any state it
+// can stop from, and the cap law never overshoots its cap.
+#include "dtis/interp/motion_law.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "test_support.hpp"
+
+namespace dtis::interp {
+namespace {
+
+TEST(MotionLaw, ReleaseGainMatchesASimulatedRelease) {
+  const double J = 5000.0, dt = 1e-3;
+  for (const double a : {0.0, 1.0, 4.99, 5.0, 5.01, 123.4, 2500.0}) {
+    double v = 0.0, acc = a;
+    while (acc > 0.0) {
+      acc = std::max(acc - J * dt, 0.0);
+      v += acc * dt;
+    }
+    EXPECT_NEAR(ReleaseGain(a, J, dt), v, 1e-12 * (1.0 + v)) << "a = " << a;
+  }
+}
+
+TEST(MotionLaw, StopReachesRestWithinLimits) {
+  std::mt19937_64 rng(test::g_seed + 3);
+  std::uniform_real_distribution<double> jerk(100.0, 1e5), acc(10.0, 1e4), frac(0.0, 1.0);
+  const double dt = 1e-3;
+  for (long c = 0; c < test::g_count * 5; ++c) {
+    const double J = jerk(rng), A = acc(rng), v0 = frac(rng) * 200.0, a0 = (frac(rng) - 0.2) * A;
+    if (v0 - ReleaseGain(-a0, J, dt) < 0.0) continue;  // braked too hard to stop forwards
+    double v = v0, a = a0;
+    int k = 0;
+    for (; k < 1000000 && (v != 0.0 || a != 0.0); ++k) {
+      double next = StopAcceleration(v, a, J, A, dt);
+      ASSERT_LE(std::abs(next - a), J * dt * (1 + 1e-9)) << "case " << c << " jerk";
+      ASSERT_LE(next, std::max(a, 0.0) + 1e-9) << "case " << c << " accelerates";
+      double v_next = v + next * dt;
+      ASSERT_GE(v_next, -1e-9 * (1.0 + v0)) << "case " << c << " reverses at period " << k;
+      if (std::abs(v_next) <= 1e-12 * (1.0 + v0)) v_next = 0.0, next = -v / dt;
+      v = v_next;
+      a = next;
+    }
+    ASSERT_LT(k, 1000000) << "case " << c << " never stops";
+    const StopDistance d = StopDistanceFrom(v0, a0, J, A, dt);
+    ASSERT_FALSE(d.reverses) << "case " << c;
+  }
+}
+
+TEST(MotionLaw, CapIsApproachedWithoutOvershoot) {
+  std::mt19937_64 rng(test::g_seed + 5);
+  std::uniform_real_distribution<double> jerk(100.0, 1e5), frac(0.0, 1.0);
+  const double dt = 1e-3;
+  for (long c = 0; c < test::g_count * 5; ++c) {
+    const double J = jerk(rng), cap = 1.0 + frac(rng) * 500.0;
+    double v = 0.0, a = 0.0, peak = 0.0;
+    for (int k = 0; k < 100000; ++k) {
+      const double next =
+          std::min(MaxAccelerationUnderCap(v, cap, J * kReleaseJerkFraction, dt), a + J * dt);
+      ASSERT_GE(next - a, -J * dt * (1 + 1e-9)) << "case " << c << ": cannot release in time";
+      a = next;
+      v += a * dt;
+      peak = std::max(peak, v);
+      if (std::abs(v - cap) < 1e-9 * cap && std::abs(a) < 1e-6) break;
+    }
+    ASSERT_LE(peak, cap * (1 + 1e-12)) << "case " << c;
+    ASSERT_NEAR(v, cap, 1e-6 * cap) << "case " << c << " did not settle";
+  }
+}
+
+}  // namespace
+}  // namespace dtis::interp

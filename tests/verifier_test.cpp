@@ -1,0 +1,71 @@
+// The verifier on hand-made sequences whose derivatives are known.
+#include "dtis/interp/verifier.hpp"
+
+#include <gtest/gtest.h>
+
+#include "dtis/core/error.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis::interp {
+namespace {
+
+std::unique_ptr<Machine> Xyz() {
+  return kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+}
+
+SetpointTable Table(const std::vector<double>& x, double dt) {
+  SetpointTable t;
+  t.axes = {"X", "Y", "Z"};
+  t.columns.resize(3);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    t.t.push_back(static_cast<double>(k) * dt);
+    t.columns[0].push_back(x[k]);
+    t.columns[1].push_back(0.0);
+    t.columns[2].push_back(0.0);
+  }
+  return t;
+}
+
+TEST(Verifier, MeasuresJerkOfAKnownSequence) {
+  // One period of jerk J: x = J dt^3 * (1, 4, 9, ...) follows from constant acceleration after it.
+  const double dt = 1e-3, J = 2500.0;  // X limit is 5000 mm/s^3
+  std::vector<double> x = {0.0};
+  double v = 0.0, a = 0.0;
+  for (int k = 0; k < 10; ++k) {
+    a += (k == 0 ? J : 0.0) * dt;
+    v += a * dt;
+    x.push_back(x.back() + v * dt);
+  }
+  for (int k = 0; k < 10; ++k) {  // decelerate symmetrically and hold
+    a += (k == 0 ? -2 * J : k == 1 ? J : 0.0) * dt;
+    v += a * dt;
+    x.push_back(x.back() + v * dt);
+  }
+  const auto r = Verify(Table(x, dt), *Xyz());
+  EXPECT_NEAR(r.axes[0].j_ratio, 1.0, 1e-6);  // the -2 J period
+  EXPECT_TRUE(r.uniform_period);
+  EXPECT_TRUE(r.starts_at_rest);
+  EXPECT_FALSE(r.ends_at_rest);  // still moving
+  EXPECT_FALSE(r.Passed());
+}
+
+TEST(Verifier, DetectsJumpsPeriodsAndAxisMismatch) {
+  auto t = Table({0, 0, 0, 1e-3, 1e-3, 1e-3, 1e-3}, 1e-3);
+  auto r = Verify(t, *Xyz());
+  EXPECT_GT(r.worst_ratio, 100.0);  // a 1 um step in 1 ms is a huge jerk
+  EXPECT_TRUE(r.ends_at_rest);
+  t.t[3] += 1e-5;
+  r = Verify(t, *Xyz());
+  EXPECT_FALSE(r.uniform_period);
+  t.axes[1] = "Q";
+  EXPECT_THROW(Verify(t, *Xyz()), Error);
+}
+
+TEST(Verifier, MotionTimeSpansFirstToLastMove) {
+  const auto r = Verify(Table({0, 0, 0, 1e-9, 3e-9, 4e-9, 4e-9, 4e-9, 4e-9}, 1e-3), *Xyz());
+  EXPECT_NEAR(r.motion_time_s, 3e-3, 1e-12);  // rows 2 -> 5
+}
+
+}  // namespace
+}  // namespace dtis::interp
