@@ -463,7 +463,8 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
     const double tiny = 1e-12 * (1.0 + std::abs(sx));
     if (sx - s0 <= tiny) return V(Direction(h));
     const V d0x = (x.q - h.p0->q) / (sx - s0);
-    if (s0 - s1 <= tiny) return d0x;
+    // At rest: the quadratic through p0 with its tangent, and x.
+    if (s0 - s1 <= tiny) return V(2.0 * d0x - Direction(h));
     const V d10 = (h.p0->q - h.p1->q) / (s0 - s1);
     const V d10x = (d0x - d10) / (sx - s1);
     return V(d10 + d10x * ((sx - s1) + (sx - s0)));
@@ -603,7 +604,13 @@ bool Planner::Brake(long m, Step* first, double pass_s, long margin) {
   const long max_steps = 10000000;
   for (long k = 0; k < max_steps; ++k) {
     const History h{&ring[(newest + 1) % 3], &ring[(newest + 2) % 3], &ring[newest]};
-    if (AtRest(h)) return true;
+    if (AtRest(h)) {
+      if (k == 0) {  // already at rest: the brake holds still
+        *first = *h.p0;
+        first->limiter = {Limiter::kRest, -1};
+      }
+      return true;
+    }
     if (h.p0->s > pass_s && ++beyond > margin) return true;
     Step next;
     if (!Produce(h, Mode::kBrake, &next)) return false;

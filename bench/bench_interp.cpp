@@ -1,0 +1,43 @@
+// Planning speed on the papers' samples, single thread, dt = 1 ms: setpoints per second and the
+// real-time factor (motion time / compute time).
+//   build/bench/dtis_bench --benchmark_filter=Plan
+#include <benchmark/benchmark.h>
+
+#include "dtis/interp/vpop.hpp"
+#include "dtis/io/job.hpp"
+#include "dtis/kinematics/machines.hpp"
+
+namespace {
+
+struct Count final : dtis::interp::SetpointSink {
+  long n = 0;
+  void Accept(const dtis::interp::Setpoint&) override { ++n; }
+};
+
+void Plan(benchmark::State& state, const char* job_file) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto path = dtis::io::BuildPath(job);
+  long setpoints = 0;
+  double motion = 0.0;
+  for (auto _ : state) {
+    Count sink;
+    const auto summary = dtis::interp::PlanVpop(*path, *machine, job.vpop, sink);
+    setpoints += sink.n;
+    motion += summary.motion_time_s;
+    benchmark::DoNotOptimize(summary);
+  }
+  state.counters["setpoints_per_s"] =
+      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
+  // Seconds of motion planned per second of compute.
+  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+}
+
+BENCHMARK_CAPTURE(Plan, line, "samples/jobs/line.toml")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(Plan, trident, "samples/jobs/trident.toml")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(Plan, circle, "samples/jobs/circle.toml")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(Plan, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml")
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+
+}  // namespace
