@@ -678,9 +678,13 @@ void Planner::BackOff(long failed) {
       if (++stuck_count_ > 3) {
         Box box;
         const bool boxed = MakeBox(h, &box);
-        FailAt(*h.p0, boxed ? "no step forward respects the axis limits even from rest (the path "
-                              "needs an axis to jump: a singularity or a position discontinuity)"
-                            : "the axis limits leave no position for the next step");
+        const std::string left =
+            length_ ? fmt::format(" ({} mm before the end)", *length_ - h.p0->s) : std::string();
+        FailAt(*h.p0, (boxed ? "no step forward respects the axis limits even from rest (the "
+                               "path needs an axis to jump: a singularity or a position "
+                               "discontinuity)"
+                             : "the axis limits leave no position for the next step") +
+                          left);
       }
     } else {
       last_stuck_s_ = h.p0->s;
