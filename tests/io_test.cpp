@@ -39,7 +39,7 @@ TEST(JobFile, ReadsAndConverts) {
 
 TEST(JobFile, BadInputNamesFileLineAndKey) {
   ExpectError([] { ParseJob(kJob + "feedrate = 3\n", "j.toml"); },
-              "j.toml:7: unknown key 'feedrate'");
+              "j.toml:7: unknown key 'path.feedrate'");
   ExpectError([] { ParseJob("period_ms = 0\n" + kJob, "j.toml"); },
               "j.toml:1: key 'period_ms': expected a number > 0, got 0");
   ExpectError([] { ParseJob("period_ms = -1\n" + kJob, "j.toml"); }, "key 'period_ms'");

@@ -22,6 +22,7 @@ geometry::BSplineCurve ReadCurve(TomlTable& t, int degree, const std::vector<dou
     // Point at the key the message is about.
     const std::string what = e.what();
     const int line = what.find("weight") != std::string::npos ? weights_line
+                     : what.find("knot") != std::string::npos ? knots_line
                      : what.find("pole") != std::string::npos ? poles_line
                                                               : knots_line;
     throw Error("{}:{}: {}", t.File(), line, what);
