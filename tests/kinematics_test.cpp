@@ -118,7 +118,9 @@ TEST(Xyzac, UnwrapsCAcrossTurns) {
     const Pose pose{Eigen::Vector3d(0, 0, 0),
                     Eigen::Vector3d(0.3 * std::cos(phi), 0.3 * std::sin(phi), 1.0).normalized()};
     ASSERT_EQ(m->Inverse(pose, i ? &previous : nullptr, &q).status, InverseStatus::kOk);
-    if (i) ASSERT_LT(std::abs(q[4] - previous[4]), 0.1);
+    if (i) {
+      ASSERT_LT(std::abs(q[4] - previous[4]), 0.1);
+    }
     previous = q;
   }
   // C = atan2(nx, ny) falls as the axis turns anticlockwise: 4 turns down from pi/2.
