@@ -74,9 +74,12 @@ VerifyReport Verify(const SetpointTable& table, const Machine& machine) {
     c.a_ratio = c.a / amax;
     c.j_ratio = c.j / jmax;
     const std::pair<double, std::string> worst[] = {
-        {c.v_ratio, fmt::format("{} velocity at t = {} s", c.name, c.v_row * dt + table.t[0])},
-        {c.a_ratio, fmt::format("{} acceleration at t = {} s", c.name, c.a_row * dt + table.t[0])},
-        {c.j_ratio, fmt::format("{} jerk at t = {} s", c.name, c.j_row * dt + table.t[0])}};
+        {c.v_ratio, fmt::format("{} velocity at t = {} s", c.name,
+                                static_cast<double>(c.v_row) * dt + table.t[0])},
+        {c.a_ratio, fmt::format("{} acceleration at t = {} s", c.name,
+                                static_cast<double>(c.a_row) * dt + table.t[0])},
+        {c.j_ratio, fmt::format("{} jerk at t = {} s", c.name,
+                                static_cast<double>(c.j_row) * dt + table.t[0])}};
     for (const auto& [ratio, what] : worst) {
       if (ratio > r.worst_ratio || r.worst.empty()) r.worst_ratio = ratio, r.worst = what;
     }

@@ -457,14 +457,19 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
   };
   // dq/ds at x: the tangent of the quadratic through the two latest steps and x (the chord alone
   // misplaces q by q_ss ds^2 / 2, as much as an axis jerk interval is wide).
+  using V = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>;
+  std::optional<V> tangent;  // Direction(h) probes the path at rest: once per search
+  const auto direction = [&]() -> const V& {
+    if (!tangent) tangent = Direction(h);
+    return *tangent;
+  };
   const auto slope = [&](const Step& x) {
-    using V = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>;
     const double s1 = h.p1->s, s0 = h.p0->s, sx = x.s;
     const double tiny = 1e-12 * (1.0 + std::abs(sx));
-    if (sx - s0 <= tiny) return V(Direction(h));
+    if (sx - s0 <= tiny) return V(direction());
     const V d0x = (x.q - h.p0->q) / (sx - s0);
     // At rest: the quadratic through p0 with its tangent, and x.
-    if (s0 - s1 <= tiny) return V(2.0 * d0x - Direction(h));
+    if (s0 - s1 <= tiny) return V(2.0 * d0x - direction());
     const V d10 = (h.p0->q - h.p1->q) / (s0 - s1);
     const V d10x = (d0x - d10) / (sx - s1);
     return V(d10 + d10x * ((sx - s1) + (sx - s0)));

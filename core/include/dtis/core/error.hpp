@@ -18,8 +18,4 @@ class Error : public std::runtime_error {
       : std::runtime_error(fmt::format(format, std::forward<Args>(args)...)) {}
 };
 
-// Formats a double so that reading it back gives the same bits (used in error messages that must
-// reproduce themselves, and in setpoint files).
-std::string Exact(double value);
-
 }  // namespace dtis
