@@ -1,11 +1,15 @@
 // The dtis command: parse arguments, call the libraries, print the summary and errors.
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
+#include <string>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
@@ -13,14 +17,38 @@
 
 namespace {
 
+// A progress line on a terminal only: pipes and files stay clean.
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled && isatty(fileno(stderr))) {}
+  void Update(int done, int total) {
+    if (!enabled_) return;
+    std::lock_guard lock(mutex_);
+    constexpr int kWidth = 30;
+    const int filled = total ? kWidth * done / total : kWidth;
+    std::fprintf(stderr, "\rplanning [%s%s] %d/%d segments", std::string(filled, '#').c_str(),
+                 std::string(kWidth - filled, '.').c_str(), done, total);
+    if (done == total) std::fputs("\r\033[K", stderr);
+    std::fflush(stderr);
+  }
+
+ private:
+  bool enabled_;
+  std::mutex mutex_;
+};
+
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
-        bool quiet) {
+        bool quiet, int threads) {
   const dtis::io::Job job = dtis::io::LoadJob(job_path);
   std::string setpoints = !output.empty()              ? output
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
   const std::string limiter_file = !limiters.empty() ? limiters : job.limiters_out;
-  const dtis::io::RunResult result = dtis::io::RunJob(job);
+  Progress progress(!quiet);
+  dtis::io::RunOptions options;
+  options.threads = threads;
+  options.progress = [&progress](int done, int total) { progress.Update(done, total); };
+  const dtis::io::RunResult result = dtis::io::RunJob(job, options);
   dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file);
   if (!quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
@@ -36,6 +64,12 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
   const auto report = dtis::interp::Verify(table, *machine);
   std::fputs(dtis::interp::FormatReport(report).c_str(), stdout);
   return report.Passed() ? 0 : 1;
+}
+
+int Faces(const std::string& file) {
+  const auto model = dtis::geometry::StepModel::Load(file);
+  std::fputs(dtis::geometry::FormatFaceTable(model).c_str(), stdout);
+  return 0;
 }
 
 }  // namespace
@@ -59,6 +93,17 @@ int main(int argc, char** argv) {
   run->add_option("--limiters", limiters,
                   "also write, per setpoint, the arc length, feed and which constraint limited it");
   run->add_flag("-q,--quiet", quiet, "print nothing on success");
+  int threads = 0;
+  run->add_option("-j,--threads", threads,
+                  "threads for a surface job's passes (0: all cores); the output is the same")
+      ->check(CLI::NonNegativeNumber);
+
+  auto* faces = app.add_subcommand(
+      "faces",
+      "List the faces of a STEP part file: index, surface type, degree, poles, rational, trimmed, "
+      "UV bounds and size (mm). Surface jobs select a face by its index.");
+  std::string step_file;
+  faces->add_option("FILE", step_file, "STEP file (AP203/AP214/AP242)")->required();
 
   auto* verify = app.add_subcommand(
       "verify",
@@ -75,7 +120,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*run) return Run(job, output, limiters, quiet);
+    if (*run) return Run(job, output, limiters, quiet, threads);
+    if (*faces) return Faces(step_file);
     if (*verify) return Verify(setpoints, machine);
   } catch (const dtis::Error& e) {
     std::fprintf(stderr, "dtis: error: %s\n", e.what());

@@ -55,5 +55,31 @@ expect bad-weight "w.toml:4: curve: weight 2 is -1" -- "$dtis" run "$work/wjob.t
 printf 't,X,Y,Z\n0,0,0,0\n0.001,abc,0,0\n' > "$work/bad.csv"
 expect bad-csv "bad.csv:3: column 2 ('X') is not a finite number" -- "$dtis" verify "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
 expect no-args "JOB is required" -- "$dtis" run
-echo "$((9 - failures)) passed, $failures failed"
+# Surface jobs.
+parts="$root/samples/parts"
+expect step-nc "MACHINING_SCHEMA" -- "$dtis" faces "$parts/nist_iso14649_ex1E_freeform_operation.stp"
+expect not-step "not a STEP file" -- "$dtis" faces "$work/base.toml"
+cat > "$work/surf.toml" <<SURF
+machine = "mikron_ucp710_xyz.toml"
+feed_mm_min = 3000
+[surface]
+file = "$parts/occt_trj8_c2-db-214_single_bspline_face.stp"
+face = 3
+[tool]
+kind = "ball_end"
+radius_mm = 3
+[strategy]
+kind = "plane_cl"
+plane_normal = [1, 0, 0]
+direction = [0, 1, 0]
+stepover_mm = 2
+SURF
+expect bad-face "face 3 does not exist; the file has faces 1 to 1" -- "$dtis" run "$work/surf.toml" -o "$work/out.csv"
+sed 's/^face = 3/face = 1/' "$work/surf.toml" > "$work/undercut.toml"
+expect undercut "undercut" -- "$dtis" run "$work/undercut.toml" -o "$work/out.csv"
+sed "s#^file = .*#file = \"$parts/occt_bug28366_fuselage_8faces.stp\"#; s/^face = 3/face = 1/" "$work/surf.toml" > "$work/nose.toml"
+expect degenerate "the surface normal is undefined" -- "$dtis" run "$work/nose.toml" -o "$work/out.csv"
+sed "s/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [500, 510]/" "$work/surf.toml" > "$work/miss.toml"
+expect misses "misses the face" -- "$dtis" run "$work/miss.toml" -o "$work/out.csv"
+echo "$((16 - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -19,3 +19,9 @@ for job in "$root"/samples/jobs/*.toml; do
   fi
   echo "sample $name: ok"
 done
+
+# A surface job's output does not depend on the number of threads planning its passes.
+"$dtis" run "$root/samples/jobs/surface_plane_cl_3axis.toml" -o "$out/one.csv" -j 1 -q
+"$dtis" run "$root/samples/jobs/surface_plane_cl_3axis.toml" -o "$out/two.csv" -j 2 -q
+cmp "$out/one.csv" "$out/two.csv"
+echo "surface job: byte-identical with 1 and 2 threads"

@@ -729,7 +729,8 @@ VpopSummary Planner::Run() {
   const PathSample s0 = path_.At(start.state, 0.0);
   start.state = s0.state;
   start.s = 0.0;
-  const InverseResult r = machine_.Inverse(s0.pose, nullptr, &start.q);
+  const InverseResult r =
+      machine_.Inverse(s0.pose, o_.previous_q ? &*o_.previous_q : nullptr, &start.q);
   if (r.status != InverseStatus::kOk) FailAt(start, DescribeInverseFailure(machine_, r));
   start.limiter = {Limiter::kStart, -1};
   steps_.push_back(start);

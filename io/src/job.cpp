@@ -5,10 +5,14 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/toml_reader.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/step_model.hpp"
+#include "dtis/interp/program.hpp"
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/curve_file.hpp"
 #include "dtis/io/setpoint_file.hpp"
@@ -17,15 +21,8 @@
 namespace dtis::io {
 namespace {
 
-Job ReadJob(TomlTable& root) {
-  Job job;
-  job.file = root.File();
-  job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
-  job.machine_file = ResolveRelative(job.file, root.String("machine"));
-  const double period_ms = root.OptionalPositiveNumber("period_ms").value_or(1.0);
-  job.vpop.period_s = period_ms * 1e-3;
-  job.vpop.feed_mm_s = root.PositiveNumber("feed_mm_min") / 60.0;
-
+void ReadPath(TomlTable& root, Job* out) {
+  Job& job = *out;
   TomlTable path = root.Table("path");
   const std::string kind = path.Choice("kind", {"line", "curve"});
   if (kind == "line") {
@@ -42,6 +39,145 @@ Job ReadJob(TomlTable& root) {
     job.path.tool_axis = axis->normalized();
   }
   path.RejectUnknown();
+}
+
+double Degrees(double deg) { return deg * std::numbers::pi / 180.0; }
+
+Eigen::Vector3d UnitVector(TomlTable& t, std::string_view key) {
+  const Eigen::Vector3d v = t.Point(key);
+  if (!(v.norm() > 0.0)) t.Fail(key, "expected a non-zero vector");
+  return v.normalized();
+}
+
+SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
+  SurfaceSpec spec;
+  TomlTable surface = root.Table("surface");
+  spec.step_file = ResolveRelative(file, surface.String("file"));
+  const std::int64_t face = surface.OptionalInteger("face").value_or(1);
+  if (face < 1) surface.Fail("face", fmt::format("expected a face index >= 1, got {}", face));
+  spec.face = static_cast<int>(face);
+  if (auto r = surface.OptionalPoint("rotate_deg")) spec.rotate_deg = *r;
+  if (auto t = surface.OptionalPoint("translate_mm")) spec.translate_mm = *t;
+  const auto side = surface.OptionalChoice("side", {"auto", "face", "reversed"}).value_or("auto");
+  using Spec = strategies::StrategySpec;
+  spec.strategy.side = side == "auto"   ? Spec::Side::kAuto
+                       : side == "face" ? Spec::Side::kFace
+                                        : Spec::Side::kReversed;
+  surface.RejectUnknown();
+
+  TomlTable tool = root.Table("tool");
+  const auto kind = tool.Choice("kind", {"ball_end", "bull_nose", "flat_end"});
+  spec.tool.radius = tool.PositiveNumber("radius_mm");
+  if (kind == "ball_end") {
+    spec.tool.kind = geometry::Tool::Kind::kBallEnd;
+    spec.tool.corner_radius = spec.tool.radius;
+  } else if (kind == "flat_end") {
+    spec.tool.kind = geometry::Tool::Kind::kFlatEnd;
+  } else {
+    spec.tool.kind = geometry::Tool::Kind::kBullNose;
+    spec.tool.corner_radius = tool.PositiveNumber("corner_radius_mm");
+    if (!(spec.tool.corner_radius < spec.tool.radius)) {
+      tool.Fail("corner_radius_mm", fmt::format("expected less than radius_mm ({}), got {}",
+                                                spec.tool.radius, spec.tool.corner_radius));
+    }
+  }
+  tool.RejectUnknown();
+
+  if (auto o = root.OptionalTable("orientation")) {
+    const auto k = o->Choice("kind", {"fixed", "tilt_yaw"});
+    if (k == "fixed") {
+      spec.orientation.kind = strategies::Orientation::Kind::kFixed;
+      if (o->Has("axis")) spec.orientation.axis = UnitVector(*o, "axis");
+    } else {
+      spec.orientation.kind = strategies::Orientation::Kind::kTiltYaw;
+      const double tilt = o->OptionalNumber("tilt_deg").value_or(0.0);
+      const double yaw = o->OptionalNumber("yaw_deg").value_or(0.0);
+      if (!(std::abs(tilt) < 90.0)) {
+        o->Fail("tilt_deg", fmt::format("expected an angle in (-90, 90) degrees, got {}", tilt));
+      }
+      spec.orientation.tilt_rad = Degrees(tilt);
+      spec.orientation.yaw_rad = Degrees(yaw);
+    }
+    o->RejectUnknown();
+  }
+
+  TomlTable st = root.Table("strategy");
+  const auto sk = st.Choice("kind", {"plane_cl", "plane_cc", "uv"});
+  Spec& s = spec.strategy;
+  s.kind = sk == "plane_cl"   ? Spec::Kind::kPlaneCl
+           : sk == "plane_cc" ? Spec::Kind::kPlaneCc
+                              : Spec::Kind::kUv;
+  if (s.kind == Spec::Kind::kUv) {
+    for (const char* key : {"plane_normal", "direction"}) {
+      if (st.Has(key)) st.Fail(key, "only used by the plane strategies");
+    }
+    s.along_u = st.OptionalChoice("along", {"u", "v"}).value_or("u") == "u";
+  } else {
+    if (st.Has("along")) st.Fail("along", "only used by kind = \"uv\"");
+    s.plane_normal = UnitVector(st, "plane_normal");
+    s.direction = UnitVector(st, "direction");
+    s.direction -= s.plane_normal * s.direction.dot(s.plane_normal);
+    if (!(s.direction.norm() > 1e-6)) {
+      st.Fail("direction", "expected a direction of travel not along plane_normal");
+    }
+    s.direction.normalize();
+  }
+  const auto mode = st.OptionalChoice("pathmode", {"forward", "zigzag"}).value_or("forward");
+  s.mode = mode == "forward" ? Spec::PathMode::kForward : Spec::PathMode::kZigzag;
+  const auto stepover = st.OptionalPositiveNumber("stepover_mm");
+  const auto scallop = st.OptionalPositiveNumber("scallop_mm");
+  if (stepover.has_value() == scallop.has_value()) {
+    st.Fail(stepover ? "scallop_mm" : "stepover_mm",
+            "expected exactly one of stepover_mm and scallop_mm");
+  }
+  s.stepover_mm = stepover.value_or(0.0);
+  s.scallop_mm = scallop.value_or(0.0);
+  if (st.Has("range")) {
+    const std::vector<double> r = st.Numbers("range");
+    if (r.size() != 2 || !(r[0] <= r[1])) {
+      st.Fail("range", "expected [first, last] with first <= last");
+    }
+    s.range = std::array<double, 2>{r[0], r[1]};
+  }
+  if (auto m = st.OptionalInteger("max_passes")) {
+    if (*m < 1) st.Fail("max_passes", fmt::format("expected at least 1, got {}", *m));
+    s.max_passes = static_cast<int>(*m);
+  }
+  if (auto t = st.OptionalPositiveNumber("newton_tol_mm")) s.newton.tolerance_mm = *t;
+  st.RejectUnknown();
+  try {
+    if (s.scallop_mm > 0.0)
+      strategies::StepoverFromScallop(spec.tool, spec.orientation, s.scallop_mm);
+  } catch (const Error& e) {
+    st.Fail("scallop_mm", e.what());
+  }
+
+  if (auto link = root.OptionalTable("link")) {
+    if (auto c = link->OptionalNumber("clearance_mm")) {
+      if (!(*c >= 0.0)) link->Fail("clearance_mm", "expected a number of mm >= 0");
+      spec.clearance_mm = *c;
+    }
+    if (auto f = link->OptionalPositiveNumber("feed_mm_min")) spec.link_feed_mm_s = *f / 60.0;
+    link->RejectUnknown();
+  }
+  return spec;
+}
+
+Job ReadJob(TomlTable& root) {
+  Job job;
+  job.file = root.File();
+  job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
+  job.machine_file = ResolveRelative(job.file, root.String("machine"));
+  const double period_ms = root.OptionalPositiveNumber("period_ms").value_or(1.0);
+  job.vpop.period_s = period_ms * 1e-3;
+  job.vpop.feed_mm_s = root.PositiveNumber("feed_mm_min") / 60.0;
+
+  if (root.Has("surface")) {
+    if (root.Has("path")) root.Fail("path", "a job has either [path] or [surface], not both");
+    job.surface = ReadSurface(root, job.file);
+  } else {
+    ReadPath(root, &job);
+  }
 
   if (auto t = root.OptionalTable("tangential")) {
     if (auto a = t->OptionalPositiveNumber("acceleration_mm_s2")) {
@@ -108,6 +244,7 @@ Job LoadJob(const std::string& path) {
 }
 
 std::unique_ptr<PathSource> BuildPath(const Job& job) {
+  if (job.surface) throw Error("{}: a surface job has several paths (passes)", job.file);
   if (job.path.kind == PathSpec::Kind::kLine) {
     return std::make_unique<geometry::LinePath>(job.path.from, job.path.to, job.path.tool_axis);
   }
@@ -124,9 +261,82 @@ std::unique_ptr<PathSource> BuildPath(const Job& job) {
   }
 }
 
-RunResult RunJob(const Job& job) {
+namespace {
+
+// Passes and the links between them, planned as one program.
+void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
+  const SurfaceSpec& spec = *job.surface;
+  if (job.interpolator != InterpolatorKind::kVpop) {
+    throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
+  }
+  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
+  const TopoDS_Face placed =
+      geometry::PlaceFace(model.Face(spec.face), spec.rotate_deg, spec.translate_mm);
+  const geometry::FaceSurface face(placed, fmt::format("{} face {}", spec.step_file, spec.face));
+  const strategies::PassList passes =
+      strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
+  const double safe_z = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
+  std::vector<std::unique_ptr<PathSource>> links;
+  std::vector<interp::ProgramSegment> segments;
+  interp::VpopOptions link_options = job.vpop;
+  if (spec.link_feed_mm_s > 0.0) link_options.feed_mm_s = spec.link_feed_mm_s;
+  std::vector<bool> is_pass;
+  for (std::size_t k = 0; k < passes.passes.size(); ++k) {
+    const strategies::SurfacePass& pass = *passes.passes[k];
+    segments.push_back({&pass, job.vpop, fmt::format("pass {}", pass.Index())});
+    is_pass.push_back(true);
+    r->path_length_mm += *pass.Length();
+    if (k + 1 == passes.passes.size()) break;
+    const auto& next = *passes.passes[k + 1];
+    std::vector<std::unique_ptr<PathSource>> moves;
+    try {
+      moves = geometry::LinkMoves(pass.EndPose(), next.StartPose(), safe_z);
+    } catch (const Error& e) {
+      throw Error("{}: linking pass {} to pass {}: {}", job.file, pass.Index(), next.Index(),
+                  e.what());
+    }
+    for (auto& m : moves) {
+      segments.push_back({m.get(), link_options,
+                          fmt::format("link from pass {} to pass {}", pass.Index(), next.Index())});
+      is_pass.push_back(false);
+      links.push_back(std::move(m));
+    }
+  }
+  r->passes = static_cast<int>(passes.passes.size());
+  r->links = static_cast<int>(links.size());
+  r->stepover_mm = passes.stepover_mm;
+  interp::ProgramOptions po;
+  po.threads = options.threads;
+  po.progress = options.progress;
+  interp::ProgramResult program;
+  try {
+    program = interp::PlanProgram(segments, *r->machine, po);
+  } catch (const Error& e) {
+    throw Error("{}: {}", job.file, e.what());
+  }
+  TableSink sink(*r->machine, job.vpop.period_s);
+  for (const auto& sp : program.setpoints) sink.Accept(sp);
+  r->vpop = program.total;
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    if (is_pass[k]) r->pass_motion_s += program.segments[k].motion_time_s;
+  }
+  r->table = sink.Table();
+  r->arc_length = sink.ArcLength();
+  r->limiters = sink.Limiters();
+}
+
+}  // namespace
+
+RunResult RunJob(const Job& job, const RunOptions& options) {
   RunResult r;
   r.machine = kinematics::LoadMachineFile(job.machine_file);
+  if (job.surface) {
+    const auto start = std::chrono::steady_clock::now();
+    RunSurface(job, options, &r);
+    r.compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    r.verify = interp::Verify(r.table, *r.machine);
+    return r;
+  }
   const auto path = BuildPath(job);
   r.path_length_mm = path->Length().value_or(0.0);
   TableSink sink(*r.machine, job.vpop.period_s);
@@ -177,6 +387,21 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
                                 : job.interpolator == InterpolatorKind::kTaylor1 ? "Taylor order 1"
                                                                                  : "Taylor order 2",
                                 r.machine->Name(), r.path_length_mm);
+  if (job.surface) {
+    out += fmt::format("surface          {} face {}, {}, {}, {}\n", job.surface->step_file,
+                       job.surface->face, job.surface->tool.Describe(),
+                       job.surface->orientation.Describe(),
+                       strategies::StrategySpec::KindName(job.surface->strategy.kind));
+    out += fmt::format(
+        "passes           {} (stepover {:.6g} mm), {} link moves, {:.6f} s on the "
+        "passes\n",
+        r.passes, r.stepover_mm, r.links, r.pass_motion_s);
+    out += fmt::format("newton           {:.3f} iterations per evaluation ({} evaluations)\n",
+                       r.vpop.evaluations ? static_cast<double>(r.vpop.path_iterations) /
+                                                static_cast<double>(r.vpop.evaluations)
+                                          : 0.0,
+                       r.vpop.evaluations);
+  }
   out += fmt::format("motion time      {:.6f} s\n", r.verify.motion_time_s);
   out += fmt::format("setpoints        {} at {:.6g} ms\n", r.verify.rows, job.vpop.period_s * 1e3);
   out += fmt::format("worst ratio      {:.6f} ({}){}\n", r.verify.worst_ratio, r.verify.worst,

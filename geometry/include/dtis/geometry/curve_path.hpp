@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "dtis/core/path_source.hpp"
 #include "dtis/geometry/arc_length.hpp"
@@ -55,6 +56,12 @@ class LinePath final : public PathSource {
   Eigen::Vector3d from_, direction_, axis_;
   double length_;
 };
+
+// Moves that link two poses through a safe height: retract along the first tool axis until the
+// tip reaches z = safe_z, traverse to above the second pose (the tool axis turning with a 5-axis
+// line pair when the two axes differ), plunge along the second axis. Moves of zero length are
+// left out. Throws dtis::Error if a tool axis points down or sideways (|a_z| < 0.05).
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z);
 
 // The distinct knots of a curve inside its domain, ends included.
 std::vector<double> DistinctKnots(const BSplineCurve& curve);

@@ -19,6 +19,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "dtis/core/machine.hpp"
@@ -45,6 +46,9 @@ struct VpopOptions {
   // Largest absolute axis position expected, used to size the rounding guard (mm or rad; 0: from
   // the axis travel, 10 turns for continuous rotary axes).
   double position_scale = 0.0;
+  // Axis positions the machine holds before this path: the first pose's solution branch and the
+  // unwrapping of rotary axes continue from them (none: the machine's default branch).
+  std::optional<AxisVector> previous_q;
 
   bool IsValid(std::string* why) const;
 };

@@ -1,0 +1,68 @@
+// Evaluation of one face of a STEP part: points and derivatives up to order 2 through
+// OpenCASCADE's generic surface evaluation (B-spline and rational faces first-class, analytic faces
+// too), and whether a (u, v) lies in the face's trimmed domain.
+//
+// A FaceSurface caches evaluation spans (OpenCASCADE's adaptor cache), so it is not thread-safe:
+// copy one per thread (a copy builds its own cache).
+#pragma once
+
+#include <BRepTopAdaptor_FClass2d.hxx>
+#include <Eigen/Core>
+#include <GeomAdaptor_Surface.hxx>
+#include <TopoDS_Face.hxx>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace dtis::geometry {
+
+struct SurfaceDerivatives {
+  Eigen::Vector3d p, su, sv, suu, suv, svv;
+};
+
+// The face set up on the machine: rotated about the workpiece origin's X, then Y, then Z axis by
+// `rotate_deg`, then moved by `translate_mm`.
+TopoDS_Face PlaceFace(const TopoDS_Face& face, const Eigen::Vector3d& rotate_deg,
+                      const Eigen::Vector3d& translate_mm);
+// Axis-aligned bounding box of a face (mm): min then max corner.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> FaceBox(const TopoDS_Face& face);
+
+class FaceSurface {
+ public:
+  // `where` names the face in messages ("part.stp face 3"). Throws dtis::Error if the face has no
+  // surface.
+  FaceSurface(const TopoDS_Face& face, std::string where);
+  FaceSurface(const FaceSurface& other);
+  FaceSurface& operator=(const FaceSurface&) = delete;
+  ~FaceSurface();
+
+  void D2(double u, double v, SurfaceDerivatives* d) const;
+  Eigen::Vector3d Point(double u, double v) const;
+
+  // The face's UV bounds (the box of its trimmed domain).
+  double U0() const { return u0_; }
+  double U1() const { return u1_; }
+  double V0() const { return v0_; }
+  double V1() const { return v1_; }
+  bool Trimmed() const { return trimmed_; }
+  // (u, v) lies in the face's domain: its UV box, and inside its trimming loops for a trimmed face.
+  bool Inside(double u, double v) const;
+
+  // Points along the face's boundary in UV, one list per wire, `per_edge` intervals per edge, in
+  // wire order. For an untrimmed face this is its parameter rectangle.
+  std::vector<std::vector<Eigen::Vector2d>> Boundary(int per_edge) const;
+
+  const std::string& Where() const { return where_; }
+  const TopoDS_Face& Face() const { return face_; }
+
+ private:
+  TopoDS_Face face_;
+  std::string where_;
+  GeomAdaptor_Surface surface_;
+  double u0_ = 0, u1_ = 0, v0_ = 0, v1_ = 0;
+  bool trimmed_ = false;
+  std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;
+};
+
+}  // namespace dtis::geometry

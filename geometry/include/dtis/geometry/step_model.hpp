@@ -1,0 +1,50 @@
+// STEP import (OpenCASCADE's STEPControl_Reader): the faces of a part file, in file order, with
+// what a CAM engineer needs to choose one. Lengths are converted to mm on reading.
+#pragma once
+
+#include <Eigen/Core>
+#include <TopoDS_Face.hxx>
+#include <TopoDS_Shape.hxx>
+#include <string>
+#include <vector>
+
+namespace dtis::geometry {
+
+struct FaceInfo {
+  int index = 0;     // 1-based, in the order OpenCASCADE explores the shape
+  std::string type;  // "bspline", "plane", "cylinder", "cone", "sphere", "torus", ...
+  int u_degree = 0;  // B-spline and Bezier faces only (0 otherwise)
+  int v_degree = 0;
+  int u_poles = 0;
+  int v_poles = 0;
+  bool rational = false;
+  bool trimmed = false;  // the face's boundary is not the surface's natural parameter rectangle
+  double u0 = 0, u1 = 0, v0 = 0, v1 = 0;              // the face's UV bounds
+  Eigen::Vector3d box_min = Eigen::Vector3d::Zero();  // axis-aligned bounding box, mm
+  Eigen::Vector3d box_max = Eigen::Vector3d::Zero();
+};
+
+class StepModel {
+ public:
+  // Reads a STEP part file (AP203, AP214 or AP242 geometry). Throws dtis::Error naming the file
+  // when it is missing, not STEP, a STEP-NC program without part geometry, or holds no face.
+  static StepModel Load(const std::string& path);
+
+  const std::string& File() const { return file_; }
+  int FaceCount() const { return static_cast<int>(faces_.size()); }
+  // 1-based; throws dtis::Error listing the valid range.
+  const TopoDS_Face& Face(int index) const;
+  const FaceInfo& Info(int index) const;
+  const std::vector<FaceInfo>& Infos() const { return infos_; }
+
+ private:
+  std::string file_;
+  TopoDS_Shape shape_;
+  std::vector<TopoDS_Face> faces_;
+  std::vector<FaceInfo> infos_;
+};
+
+// The table `dtis faces` prints.
+std::string FormatFaceTable(const StepModel& model);
+
+}  // namespace dtis::geometry

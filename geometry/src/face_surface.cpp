@@ -1,0 +1,149 @@
+#include "dtis/geometry/face_surface.hpp"
+
+#include <BRepBndLib.hxx>
+#include <BRepTools.hxx>
+#include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
+#include <Geom2d_Curve.hxx>
+#include <Geom_Surface.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopLoc_Location.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Edge.hxx>
+#include <TopoDS_Wire.hxx>
+#include <algorithm>
+#include <cmath>
+#include <gp.hxx>
+#include <gp_Ax1.hxx>
+#include <gp_Pnt2d.hxx>
+#include <gp_Trsf.hxx>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::geometry {
+namespace {
+
+Eigen::Vector3d V(const gp_Pnt& p) { return {p.X(), p.Y(), p.Z()}; }
+Eigen::Vector3d V(const gp_Vec& p) { return {p.X(), p.Y(), p.Z()}; }
+
+bool IsRectangle(const TopoDS_Face& face, double u0, double u1, double v0, double v1) {
+  int wires = 0;
+  for (TopExp_Explorer w(face, TopAbs_WIRE); w.More(); w.Next()) ++wires;
+  if (wires != 1) return false;
+  const double tol = 1e-9 * std::max({1.0, u1 - u0, v1 - v0});
+  for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
+    double f = 0, l = 0;
+    const Handle(Geom2d_Curve) pc =
+        BRep_Tool::CurveOnSurface(TopoDS::Edge(e.Current()), face, f, l);
+    if (pc.IsNull()) return false;
+    const gp_Pnt2d a = pc->Value(f), m = pc->Value(0.5 * (f + l)), b = pc->Value(l);
+    const auto iso = [tol](double x, double y, double z, double lo, double hi) {
+      return std::abs(x - y) < tol && std::abs(y - z) < tol &&
+             (std::abs(x - lo) < tol || std::abs(x - hi) < tol);
+    };
+    if (!iso(a.X(), m.X(), b.X(), u0, u1) && !iso(a.Y(), m.Y(), b.Y(), v0, v1)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+TopoDS_Face PlaceFace(const TopoDS_Face& face, const Eigen::Vector3d& rotate_deg,
+                      const Eigen::Vector3d& translate_mm) {
+  gp_Trsf trsf;
+  const gp_Ax1 axes[3] = {gp::OX(), gp::OY(), gp::OZ()};
+  for (int i = 0; i < 3; ++i) {
+    if (rotate_deg[i] == 0.0) continue;
+    gp_Trsf r;
+    r.SetRotation(axes[i], rotate_deg[i] * M_PI / 180.0);
+    trsf = r * trsf;
+  }
+  gp_Trsf t;
+  t.SetTranslation(gp_Vec(translate_mm.x(), translate_mm.y(), translate_mm.z()));
+  trsf = t * trsf;
+  return TopoDS::Face(face.Moved(TopLoc_Location(trsf)));
+}
+
+std::pair<Eigen::Vector3d, Eigen::Vector3d> FaceBox(const TopoDS_Face& face) {
+  Bnd_Box box;
+  BRepBndLib::AddOptimal(face, box, Standard_False, Standard_False);
+  if (box.IsVoid()) return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  double x0, y0, z0, x1, y1, z1;
+  box.Get(x0, y0, z0, x1, y1, z1);
+  return {{x0, y0, z0}, {x1, y1, z1}};
+}
+
+FaceSurface::FaceSurface(const TopoDS_Face& face, std::string where)
+    : face_(face), where_(std::move(where)) {
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(face_);
+  if (s.IsNull()) throw Error("{}: the face has no surface", where_);
+  surface_.Load(s);
+  BRepTools::UVBounds(face_, u0_, u1_, v0_, v1_);
+  // The domain is the UV box unless the face's boundary is not that box's four sides.
+  trimmed_ = !IsRectangle(face_, u0_, u1_, v0_, v1_);
+  if (trimmed_) {
+    const double tol = 1e-9 * std::max({1.0, u1_ - u0_, v1_ - v0_});
+    classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
+  }
+}
+
+FaceSurface::FaceSurface(const FaceSurface& other) : FaceSurface(other.face_, other.where_) {}
+
+FaceSurface::~FaceSurface() = default;
+
+void FaceSurface::D2(double u, double v, SurfaceDerivatives* d) const {
+  gp_Pnt p;
+  gp_Vec su, sv, suu, svv, suv;
+  surface_.D2(u, v, p, su, sv, suu, svv, suv);
+  d->p = V(p);
+  d->su = V(su);
+  d->sv = V(sv);
+  d->suu = V(suu);
+  d->suv = V(suv);
+  d->svv = V(svv);
+}
+
+Eigen::Vector3d FaceSurface::Point(double u, double v) const { return V(surface_.Value(u, v)); }
+
+bool FaceSurface::Inside(double u, double v) const {
+  const double tol = 1e-12 * std::max({1.0, u1_ - u0_, v1_ - v0_});
+  if (u < u0_ - tol || u > u1_ + tol || v < v0_ - tol || v > v1_ + tol) return false;
+  if (!classifier_) return true;
+  const TopAbs_State state = classifier_->Perform(gp_Pnt2d(u, v), Standard_False);
+  return state == TopAbs_IN || state == TopAbs_ON;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> FaceSurface::Boundary(int per_edge) const {
+  std::vector<std::vector<Eigen::Vector2d>> loops;
+  if (!trimmed_) {
+    std::vector<Eigen::Vector2d> loop;
+    const Eigen::Vector2d corner[5] = {{u0_, v0_}, {u1_, v0_}, {u1_, v1_}, {u0_, v1_}, {u0_, v0_}};
+    for (int side = 0; side < 4; ++side) {
+      for (int k = 0; k < per_edge; ++k) {
+        loop.push_back(corner[side] + (corner[side + 1] - corner[side]) * k / per_edge);
+      }
+    }
+    loop.push_back(corner[0]);
+    loops.push_back(std::move(loop));
+    return loops;
+  }
+  for (TopExp_Explorer w(face_, TopAbs_WIRE); w.More(); w.Next()) {
+    std::vector<Eigen::Vector2d> loop;
+    for (TopExp_Explorer e(w.Current(), TopAbs_EDGE); e.More(); e.Next()) {
+      const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
+      double f = 0, l = 0;
+      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(edge, face_, f, l);
+      if (pc.IsNull()) continue;
+      const bool reversed = edge.Orientation() == TopAbs_REVERSED;
+      for (int k = 0; k <= per_edge; ++k) {
+        const double t = reversed ? l - (l - f) * k / per_edge : f + (l - f) * k / per_edge;
+        const gp_Pnt2d p = pc->Value(t);
+        loop.emplace_back(p.X(), p.Y());
+      }
+    }
+    if (!loop.empty()) loops.push_back(std::move(loop));
+  }
+  return loops;
+}
+
+}  // namespace dtis::geometry

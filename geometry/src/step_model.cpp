@@ -1,0 +1,215 @@
+#include "dtis/geometry/step_model.hpp"
+
+#include <fmt/format.h>
+
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepBndLib.hxx>
+#include <BRepTools.hxx>
+#include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
+#include <Geom2dAdaptor_Curve.hxx>
+#include <Geom2d_Curve.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <Interface_Static.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Edge.hxx>
+#include <TopoDS_Wire.hxx>
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::geometry {
+namespace {
+
+// OpenCASCADE's STEP reader crashes on some STEP-NC (ISO 14649) files, whose schemas hold no part
+// geometry it knows: check the header first, and name the schema in the error.
+void CheckHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error("{}: cannot open the file", path);
+  std::string head(65536, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (head.find("ISO-10303-21") == std::string::npos) {
+    throw Error("{}: not a STEP file (no 'ISO-10303-21;' header); expected a STEP part file", path);
+  }
+  const auto at = head.find("FILE_SCHEMA");
+  if (at == std::string::npos) throw Error("{}: the STEP header has no FILE_SCHEMA", path);
+  const auto open = head.find('\'', at), close = head.find('\'', open + 1);
+  std::string schema = open == std::string::npos || close == std::string::npos
+                           ? std::string()
+                           : head.substr(open + 1, close - open - 1);
+  std::string upper = schema;
+  std::transform(upper.begin(), upper.end(), upper.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  for (const char* known : {"AUTOMOTIVE_DESIGN", "CONFIG_CONTROL_DESIGN", "AP203", "AP214", "AP242",
+                            "AP209", "STRUCTURAL_ANALYSIS_DESIGN"}) {
+    if (upper.find(known) != std::string::npos) return;
+  }
+  throw Error(
+      "{}: STEP schema '{}' holds no part geometry dtis reads; expected an AP203, AP214 or AP242 "
+      "part file (a STEP-NC program such as ISO 14649 describes operations, not the surface)",
+      path, schema);
+}
+
+const char* SurfaceTypeName(GeomAbs_SurfaceType type) {
+  switch (type) {
+    case GeomAbs_Plane:
+      return "plane";
+    case GeomAbs_Cylinder:
+      return "cylinder";
+    case GeomAbs_Cone:
+      return "cone";
+    case GeomAbs_Sphere:
+      return "sphere";
+    case GeomAbs_Torus:
+      return "torus";
+    case GeomAbs_BezierSurface:
+      return "bezier";
+    case GeomAbs_BSplineSurface:
+      return "bspline";
+    case GeomAbs_SurfaceOfRevolution:
+      return "revolution";
+    case GeomAbs_SurfaceOfExtrusion:
+      return "extrusion";
+    case GeomAbs_OffsetSurface:
+      return "offset";
+    default:
+      return "other";
+  }
+}
+
+// A face is untrimmed when its only wire runs along the surface's natural parameter rectangle:
+// every edge's pcurve is an iso-line at a bound of the surface.
+bool IsTrimmed(const TopoDS_Face& face, const BRepAdaptor_Surface& s) {
+  int wires = 0;
+  for (TopExp_Explorer w(face, TopAbs_WIRE); w.More(); w.Next()) ++wires;
+  if (wires != 1) return true;
+  const double su0 = s.FirstUParameter(), su1 = s.LastUParameter();
+  const double sv0 = s.FirstVParameter(), sv1 = s.LastVParameter();
+  if (!std::isfinite(su0) || !std::isfinite(su1) || std::abs(su0) > 1e50 || std::abs(su1) > 1e50 ||
+      std::abs(sv0) > 1e50 || std::abs(sv1) > 1e50) {
+    return true;  // an infinite analytic surface is always bounded by a trim
+  }
+  const double tol = 1e-7 * std::max({1.0, su1 - su0, sv1 - sv0});
+  for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
+    const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
+    double f = 0, l = 0;
+    const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(edge, face, f, l);
+    if (pc.IsNull()) return true;
+    bool on_u = true, on_v = true;
+    double u_first = 0, v_first = 0;
+    for (int k = 0; k <= 8; ++k) {
+      const gp_Pnt2d p = pc->Value(f + (l - f) * k / 8.0);
+      if (k == 0) u_first = p.X(), v_first = p.Y();
+      on_u = on_u && std::abs(p.X() - u_first) < tol;
+      on_v = on_v && std::abs(p.Y() - v_first) < tol;
+    }
+    const auto at = [tol](double x, double a, double b) {
+      return std::abs(x - a) < tol || std::abs(x - b) < tol;
+    };
+    if (!(on_u && at(u_first, su0, su1)) && !(on_v && at(v_first, sv0, sv1))) return true;
+  }
+  return false;
+}
+
+FaceInfo Describe(int index, const TopoDS_Face& face) {
+  FaceInfo info;
+  info.index = index;
+  BRepAdaptor_Surface s(face, Standard_False);
+  info.type = SurfaceTypeName(s.GetType());
+  if (s.GetType() == GeomAbs_BSplineSurface || s.GetType() == GeomAbs_BezierSurface) {
+    info.u_degree = s.UDegree();
+    info.v_degree = s.VDegree();
+    info.u_poles = s.NbUPoles();
+    info.v_poles = s.NbVPoles();
+    info.rational = s.IsURational() || s.IsVRational();
+  }
+  BRepTools::UVBounds(face, info.u0, info.u1, info.v0, info.v1);
+  info.trimmed = IsTrimmed(face, s);
+  Bnd_Box box;
+  BRepBndLib::AddOptimal(face, box, Standard_False, Standard_False);
+  if (!box.IsVoid()) {
+    double x0, y0, z0, x1, y1, z1;
+    box.Get(x0, y0, z0, x1, y1, z1);
+    info.box_min = {x0, y0, z0};
+    info.box_max = {x1, y1, z1};
+  }
+  return info;
+}
+
+// STEPControl_Reader's static parameters are process-wide.
+std::mutex& ReaderMutex() {
+  static std::mutex m;
+  return m;
+}
+
+}  // namespace
+
+StepModel StepModel::Load(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw Error("{}: no such file", path);
+  CheckHeader(path);
+  StepModel model;
+  model.file_ = path;
+  try {
+    std::lock_guard lock(ReaderMutex());
+    Interface_Static::SetCVal("xstep.cascade.unit", "MM");
+    STEPControl_Reader reader;
+    if (reader.ReadFile(path.c_str()) != IFSelect_RetDone) {
+      throw Error("{}: OpenCASCADE could not parse this STEP file", path);
+    }
+    if (reader.TransferRoots() == 0) throw Error("{}: no shape could be read from the file", path);
+    model.shape_ = reader.OneShape();
+  } catch (const Standard_Failure& e) {
+    throw Error("{}: OpenCASCADE failed reading the file: {}", path, e.GetMessageString());
+  }
+  for (TopExp_Explorer e(model.shape_, TopAbs_FACE); e.More(); e.Next()) {
+    model.faces_.push_back(TopoDS::Face(e.Current()));
+    model.infos_.push_back(Describe(static_cast<int>(model.faces_.size()), model.faces_.back()));
+  }
+  if (model.faces_.empty()) throw Error("{}: the file holds no face", path);
+  return model;
+}
+
+const TopoDS_Face& StepModel::Face(int index) const {
+  if (index < 1 || index > FaceCount()) {
+    throw Error(
+        "{}: face {} does not exist; the file has faces 1 to {} (list them with `dtis faces "
+        "{}`)",
+        file_, index, FaceCount(), file_);
+  }
+  return faces_[static_cast<std::size_t>(index - 1)];
+}
+
+const FaceInfo& StepModel::Info(int index) const {
+  Face(index);  // range check
+  return infos_[static_cast<std::size_t>(index - 1)];
+}
+
+std::string FormatFaceTable(const StepModel& model) {
+  std::string out = fmt::format("{}: {} face{}\n", model.File(), model.FaceCount(),
+                                model.FaceCount() == 1 ? "" : "s");
+  out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7}  {:<40}  {}\n", "face", "type",
+                     "degree", "poles", "rational", "trimmed", "uv bounds", "size mm (x y z)");
+  for (const FaceInfo& f : model.Infos()) {
+    const std::string degree = f.u_degree ? fmt::format("{}x{}", f.u_degree, f.v_degree) : "-";
+    const std::string poles = f.u_poles ? fmt::format("{}x{}", f.u_poles, f.v_poles) : "-";
+    const std::string uv =
+        fmt::format("[{:.6g}, {:.6g}] x [{:.6g}, {:.6g}]", f.u0, f.u1, f.v0, f.v1);
+    const Eigen::Vector3d size = f.box_max - f.box_min;
+    out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7}  {:<40}  {:.4g} {:.4g} {:.4g}\n",
+                       f.index, f.type, degree, poles, f.rational ? "yes" : "no",
+                       f.trimmed ? "yes" : "no", uv, size.x(), size.y(), size.z());
+  }
+  return out;
+}
+
+}  // namespace dtis::geometry

@@ -1,0 +1,41 @@
+// A program: several paths planned one after the other, each from rest to rest (a surface job's
+// passes and the moves that link them, later a G-code program's blocks). Segments are planned in
+// parallel (oneTBB) and stitched in order: each starts where the previous one ended, on the same
+// solution branch, with rotary axes unwrapped continuously. The result does not depend on the
+// number of threads.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "dtis/core/machine.hpp"
+#include "dtis/core/path_source.hpp"
+#include "dtis/interp/vpop.hpp"
+
+namespace dtis::interp {
+
+struct ProgramSegment {
+  const PathSource* path = nullptr;  // used by one thread at a time
+  VpopOptions options;               // per segment (feed differs for links)
+  std::string name;                  // "pass 3", "link 2-3 retract", for messages
+};
+
+struct ProgramResult {
+  std::vector<Setpoint> setpoints;  // indices renumbered 0, 1, ... over the whole program
+  std::vector<VpopSummary> segments;
+  std::vector<long> first_row;  // row of each segment's first setpoint in `setpoints`
+  VpopSummary total;            // counts summed; motion time of the whole program
+};
+
+struct ProgramOptions {
+  int threads = 0;  // 0: oneTBB's default (all cores)
+  // Called after each segment is planned, from any thread: (segments done, segments).
+  std::function<void(int, int)> progress;
+};
+
+// Throws dtis::Error naming the segment when one cannot be planned or does not start where the
+// previous one ended (which would be a position jump).
+ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Machine& machine,
+                          const ProgramOptions& options = {});
+
+}  // namespace dtis::interp

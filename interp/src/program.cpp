@@ -1,0 +1,140 @@
+#include "dtis/interp/program.hpp"
+
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/parallel_for.h>
+
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <numbers>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::interp {
+namespace {
+
+class VectorSink final : public SetpointSink {
+ public:
+  void Accept(const Setpoint& sp) override { rows.push_back(sp); }
+  std::vector<Setpoint> rows;
+};
+
+struct Planned {
+  std::vector<Setpoint> rows;
+  VpopSummary summary;
+  std::exception_ptr error;
+};
+
+void PlanOne(const ProgramSegment& seg, const Machine& machine, const VpopOptions& options,
+             Planned* out) {
+  try {
+    VectorSink sink;
+    out->summary = PlanVpop(*seg.path, machine, options, sink);
+    out->rows = std::move(sink.rows);
+    out->error = nullptr;
+  } catch (const Error& e) {
+    out->error = std::make_exception_ptr(Error("{}: {}", seg.name, e.what()));
+  } catch (...) {
+    out->error = std::current_exception();
+  }
+}
+
+// Shifts continuous rotary axes of `rows` by whole turns so that they start at `previous`.
+// Returns false if some axis still differs (another branch).
+bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpoint>* rows) {
+  const auto axes = machine.Axes();
+  AxisVector shift = AxisVector::Zero(machine.AxisCount());
+  const AxisVector& first = rows->front().q;
+  for (int i = 0; i < machine.AxisCount(); ++i) {
+    const double d = previous[i] - first[i];
+    // A path ends within end_tolerance_mm of its end: well below this.
+    const double scale = 1e-6;
+    if (std::abs(d) <= scale) continue;
+    if (!axes[static_cast<std::size_t>(i)].continuous) return false;
+    const double turns = std::round(d / (2.0 * std::numbers::pi));
+    if (turns == 0.0 || std::abs(d - turns * 2.0 * std::numbers::pi) > 1e-9) return false;
+    shift[i] = turns * 2.0 * std::numbers::pi;
+  }
+  if (shift.isZero()) return true;
+  for (Setpoint& sp : *rows) sp.q += shift;
+  return true;
+}
+
+}  // namespace
+
+ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Machine& machine,
+                          const ProgramOptions& options) {
+  const int n = static_cast<int>(segments.size());
+  std::vector<Planned> planned(segments.size());
+  std::atomic<int> done{0};
+  {
+    std::unique_ptr<oneapi::tbb::global_control> limit;
+    if (options.threads > 0) {
+      limit = std::make_unique<oneapi::tbb::global_control>(
+          oneapi::tbb::global_control::max_allowed_parallelism,
+          static_cast<std::size_t>(options.threads));
+    }
+    oneapi::tbb::parallel_for(0, n, [&](int k) {
+      const auto i = static_cast<std::size_t>(k);
+      PlanOne(segments[i], machine, segments[i].options, &planned[i]);
+      const int d = ++done;
+      if (options.progress) options.progress(d, n);
+    });
+  }
+  ProgramResult result;
+  for (int k = 0; k < n; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    if (planned[i].error) std::rethrow_exception(planned[i].error);
+    if (k > 0) {
+      const AxisVector& previous = result.setpoints.back().q;
+      if (!Align(machine, previous, &planned[i].rows)) {
+        // Another branch than where the previous segment ended: plan again from there.
+        VpopOptions o = segments[i].options;
+        o.previous_q = previous;
+        PlanOne(segments[i], machine, o, &planned[i]);
+        if (planned[i].error) std::rethrow_exception(planned[i].error);
+        if (!Align(machine, previous, &planned[i].rows)) {
+          throw Error(
+              "{}: starts at other axis positions than where the previous segment ended "
+              "(the path is not continuous there)",
+              segments[i].name);
+        }
+      }
+    }
+    const Planned& p = planned[i];
+    result.first_row.push_back(static_cast<long>(result.setpoints.size()));
+    // Each segment starts with the row the previous one ended on: keep one of them.
+    const std::size_t skip = k > 0 ? 1 : 0;
+    for (std::size_t r = skip; r < p.rows.size(); ++r) {
+      Setpoint sp = p.rows[r];
+      sp.index = static_cast<long>(result.setpoints.size());
+      result.setpoints.push_back(sp);
+    }
+    result.segments.push_back(p.summary);
+    VpopSummary& t = result.total;
+    t.setpoints = static_cast<long>(result.setpoints.size());
+    t.back_offs += p.summary.back_offs;
+    t.brake_tests += p.summary.brake_tests;
+    t.evaluations += p.summary.evaluations;
+    t.path_iterations += p.summary.path_iterations;
+    t.end_s += p.summary.end_s;
+    for (std::size_t l = 0; l < t.limited_by.size(); ++l)
+      t.limited_by[l] += p.summary.limited_by[l];
+  }
+  // The motion ends at the last row that moves.
+  long last_move = 0;
+  for (long r = static_cast<long>(result.setpoints.size()) - 1; r > 0; --r) {
+    if (result.setpoints[static_cast<std::size_t>(r)].q !=
+        result.setpoints[static_cast<std::size_t>(r - 1)].q) {
+      last_move = r;
+      break;
+    }
+  }
+  if (!result.setpoints.empty() && n > 0) {
+    result.total.motion_time_s = static_cast<double>(last_move) * segments[0].options.period_s;
+  }
+  return result;
+}
+
+}  // namespace dtis::interp

@@ -1,0 +1,68 @@
+// The ISO 14649-11 freeform strategies: from a face, a tool, an orientation rule and a stepover to
+// the list of passes, each a SurfacePass (a PathSource solved by Newton on the exact surface).
+//
+// plane_cl: the tool tip in parallel planes (the offset surface cut by planes); plane_cc: the
+// contact point in parallel planes; uv: iso-parametric lines, forward along u (iso-v lines) or v.
+// A line of the strategy may cross the face several times: each crossing is a pass, running from
+// where it enters the face's (trimmed) domain to where it leaves it. Passes are found by scanning
+// the face's boundary for the lines' roots and tracing each once (length, gouge check).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/tool.hpp"
+#include "dtis/strategies/orientation.hpp"
+#include "dtis/strategies/surface_pass.hpp"
+
+namespace dtis::strategies {
+
+struct StrategySpec {
+  enum class Kind { kPlaneCl, kPlaneCc, kUv };
+  enum class PathMode { kForward, kZigzag };
+  enum class Side { kAuto, kFace, kReversed };
+
+  Kind kind = Kind::kPlaneCl;
+  // Plane strategies: the planes' normal, and the direction of travel (the feed direction is the
+  // tangent plane cut by the strategy plane, oriented along this vector).
+  Eigen::Vector3d plane_normal = Eigen::Vector3d::UnitX();
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitY();
+  // uv: passes along u (iso-v lines) or along v; travel towards increasing parameter.
+  bool along_u = true;
+  PathMode mode = PathMode::kForward;
+  // Distance between neighbouring lines, mm; 0: from scallop_mm.
+  double stepover_mm = 0.0;
+  double scallop_mm = 0.0;
+  // Lines inside [first, last] only: plane offsets in mm along the normal, or parameter values for
+  // uv. Without it the lines cover the face, half a stepover in from its extremes.
+  std::optional<std::array<double, 2>> range;
+  int max_passes = 0;  // 0: all
+  Side side = Side::kAuto;
+  NewtonOptions newton;
+  double trace_step_mm = 0.25;  // step of the one tracing walk that finds each pass's end
+
+  static const char* KindName(Kind kind);
+};
+
+struct PassList {
+  std::vector<std::unique_ptr<SurfacePass>> passes;
+  double stepover_mm = 0.0;  // used between lines (mm; for uv the nominal distance)
+  int side = 1;              // +1: the side of S_u x S_v was machined
+  std::string Summary() const;
+};
+
+// Throws dtis::Error naming the face, line, arc length and (u, v) on a degenerate normal, a
+// gouge, an undefined feed direction, a range that misses the face, a pass that never ends.
+PassList BuildPasses(const geometry::FaceSurface& face, const geometry::Tool& tool,
+                     const Orientation& orientation, const StrategySpec& spec);
+
+// The stepover leaving a scallop of height h between passes on a flat surface: 2 sqrt(h (2 R - h))
+// with the tool's effective radius across the feed: the ball radius; r + R / sin(tilt) for a
+// torus leaning by `tilt` along the feed; the corner radius r for a fixed axis (its worst case).
+double StepoverFromScallop(const geometry::Tool& tool, const Orientation& orientation, double h);
+
+}  // namespace dtis::strategies

@@ -1,0 +1,136 @@
+// One pass of a surface strategy as a PathSource (DTIS, Beudaert et al. 2014, §2.3).
+//
+// A pass is the set of contact points (u, v) on the face where the strategy's constraint g(u, v) is
+// zero: the tool tip in a plane (plane_cl), the contact point in a plane (plane_cc), or an
+// iso-parametric line (uv). Its arc length s is that of the tool tip. For a trial arc length the
+// pose comes from a Newton solve on the exact surface, warm-started from the given state:
+//     g(u, v) = 0  and  |tip(u, v) - tip(state)| = c,
+// where the chord c is corrected once so that the arc between the two states (from the angle of
+// their tangents) is the requested step. The Jacobian is exact: the normal, feed direction, tool
+// axis and tip are computed with forward-mode derivatives (ceres::Jet) from the surface's second
+// derivatives. Nothing is tabulated: a pass holds its start, its end and its length, found by the
+// builder when it traced the pass once.
+//
+// A SurfacePass evaluates its face through its own FaceSurface (an OpenCASCADE cache): use one pass
+// from one thread at a time.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "dtis/core/path_source.hpp"
+#include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/tool.hpp"
+#include "dtis/strategies/orientation.hpp"
+
+namespace dtis::strategies {
+
+// What g(u, v) = 0 means for one pass.
+struct PassConstraint {
+  enum class Kind { kPlaneCl, kPlaneCc, kIsoV, kIsoU };
+  Kind kind = Kind::kPlaneCl;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitX();  // plane strategies: unit plane normal
+  double value = 0.0;      // plane: normal . x = value (mm); iso lines: the fixed parameter
+  double iso_scale = 1.0;  // iso lines: mm per parameter unit, so that g is in mm
+  // The feed direction f is sign * unit(n x normal) for planes (the tangent plane cut by the
+  // strategy plane), sign * unit(S_u) for iso-v lines and sign * unit(S_v) for iso-u lines.
+  int feed_sign = 1;
+
+  std::string Describe() const;
+};
+
+struct NewtonOptions {
+  double tolerance_mm = 1e-6;  // |g| and the chord residual, mm (the paper's 0.001 um)
+  int max_iterations = 12;
+  double max_step_mm = 0.5;  // longer moves are split into steps of at most this length
+};
+
+enum class EvalStatus { kOk, kDegenerateNormal, kFeedUndefined, kFlatContact, kStalled };
+const char* EvalStatusText(EvalStatus status);
+
+// Everything known at one contact point.
+struct ContactPoint {
+  Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+  Eigen::Vector3d p, n, feed, axis, tip;  // contact point, unit normal, feed, tool axis, tool tip
+  Eigen::Matrix<double, 3, 2> dp, dtip;   // d/d(u, v)
+  double g = 0.0;                         // strategy residual, mm
+  Eigen::Vector2d dg = Eigen::Vector2d::Zero();
+  Eigen::Vector2d duv = Eigen::Vector2d::Zero();  // d(u, v)/ds along the travel
+  Eigen::Vector3d tangent;                        // unit tip tangent along the travel
+  double concave_curvature = 0.0;  // largest principal curvature bending towards the tool, 1/mm
+};
+
+// Surface + tool + orientation + constraint: the geometry of one pass.
+class PassEvaluator {
+ public:
+  // side: +1 machines the side of S_u x S_v, -1 the other.
+  PassEvaluator(const geometry::FaceSurface& face, const geometry::Tool& tool,
+                const Orientation& orientation, int side, const PassConstraint& constraint);
+  PassEvaluator(const PassEvaluator&) = default;
+
+  EvalStatus Evaluate(const Eigen::Vector2d& uv, ContactPoint* out) const;
+  // Newton: the point with g = 0 whose tip is `chord` mm from `anchor`, from `uv`. Returns the
+  // iterations (updates) spent, or -1 if it did not converge; `status` says why it stopped.
+  int SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
+                 const NewtonOptions& options, ContactPoint* out, EvalStatus* status) const;
+  // One step of `delta` mm of tip arc length along the pass (backwards if negative) from `from`:
+  // a chord solve from the tangent predictor, then one correction of the chord so that the arc
+  // estimate is |delta|. Returns false (with `status`, kOk meaning no convergence) on failure.
+  bool Step(const ContactPoint& from, double delta, const NewtonOptions& options, ContactPoint* to,
+            EvalStatus* status, int* iterations) const;
+  bool Inside(const Eigen::Vector2d& uv) const { return face_.Inside(uv.x(), uv.y()); }
+
+  const geometry::FaceSurface& Face() const { return face_; }
+  const geometry::Tool& Tool() const { return tool_; }
+  const PassConstraint& Constraint() const { return constraint_; }
+  PassConstraint& MutableConstraint() { return constraint_; }
+  int Side() const { return side_; }
+
+ private:
+  geometry::FaceSurface face_;
+  geometry::Tool tool_;
+  Orientation orientation_;
+  int side_;
+  PassConstraint constraint_;
+};
+
+// The arc length between two points with unit tangents ta, tb, `chord` apart: exact for a circular
+// arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
+double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb);
+
+class SurfacePass final : public PathSource {
+ public:
+  // `start` and `end` lie on the face's boundary, `length` is the tip arc length between them.
+  SurfacePass(const PassEvaluator& evaluator, int index, const Eigen::Vector2d& start,
+              const Eigen::Vector2d& end, double length, const NewtonOptions& options);
+
+  PathState Start() const override;
+  std::optional<double> Length() const override { return length_; }
+  PathSample At(const PathState& from, double s) const override;
+  std::string Describe(const PathState& state) const override;
+
+  int Index() const { return index_; }  // 1-based
+  Pose StartPose() const;
+  Pose EndPose() const;
+  const PassEvaluator& Evaluator() const { return eval_; }
+  // The contact point at (u, v), for tests and reports.
+  EvalStatus Evaluate(double u, double v, ContactPoint* out) const;
+
+ private:
+  const ContactPoint& From(const PathState& state, int* slot) const;
+  PathSample EndSample(double s) const;
+
+  PassEvaluator eval_;
+  int index_;
+  ContactPoint start_, end_;
+  double length_;
+  NewtonOptions options_;
+  // The last state stepped from and the last result: the planner asks several trial arc lengths
+  // from the same state, then steps from one of the results.
+  mutable ContactPoint cache_[2];
+  mutable bool cache_valid_[2] = {false, false};
+};
+
+}  // namespace dtis::strategies

@@ -1,0 +1,17 @@
+#include "dtis/strategies/orientation.hpp"
+
+#include <fmt/format.h>
+
+#include <numbers>
+
+namespace dtis::strategies {
+
+std::string Orientation::Describe() const {
+  if (kind == Kind::kFixed) {
+    return fmt::format("fixed axis ({:.6g}, {:.6g}, {:.6g})", axis.x(), axis.y(), axis.z());
+  }
+  return fmt::format("tilt {:.6g} deg, yaw {:.6g} deg", tilt_rad * 180.0 / std::numbers::pi,
+                     yaw_rad * 180.0 / std::numbers::pi);
+}
+
+}  // namespace dtis::strategies

@@ -1,0 +1,427 @@
+#include "dtis/strategies/strategy.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::strategies {
+namespace {
+
+constexpr double kProbeMm = 1e-3;      // step used to tell an entry from an exit
+constexpr double kBoundaryMm = 1e-10;  // pass ends are found to this chord precision
+
+struct Candidate {
+  int line = 0;
+  PassConstraint constraint;
+  ContactPoint start, end;
+  double length = 0.0;
+  double order = 0.0;  // position of the start along the travel, to sort passes of one line
+};
+
+class Builder {
+ public:
+  Builder(const geometry::FaceSurface& face, const geometry::Tool& tool,
+          const Orientation& orientation, const StrategySpec& spec)
+      : face_(face), tool_(tool), orientation_(orientation), spec_(spec) {
+    side_ = DetermineSide();
+    switch (tool_.kind) {
+      case geometry::Tool::Kind::kBallEnd:
+        max_curvature_ = 1.0 / tool_.radius;
+        break;
+      case geometry::Tool::Kind::kBullNose:
+        max_curvature_ = 1.0 / tool_.corner_radius;
+        break;
+      case geometry::Tool::Kind::kFlatEnd:
+        max_curvature_ = INFINITY;
+        break;
+    }
+  }
+
+  PassList Build() {
+    PassList list;
+    list.side = side_;
+    list.stepover_mm = spec_.stepover_mm > 0.0
+                           ? spec_.stepover_mm
+                           : StepoverFromScallop(tool_, orientation_, spec_.scallop_mm);
+    const std::vector<PassConstraint> lines = Lines(list.stepover_mm);
+    std::vector<Candidate> found;
+    for (std::size_t k = 0; k < lines.size(); ++k) {
+      const std::size_t before = found.size();
+      FindPasses(static_cast<int>(k), lines[k], &found);
+      if (found.size() == before && spec_.range) {
+        throw Error("{}: the strategy line {} misses the face ({}); the face spans {} here",
+                    face_.Where(), k + 1, lines[k].Describe(), ExtentText());
+      }
+    }
+    if (found.empty()) {
+      throw Error("{}: no pass of the {} strategy crosses the face", face_.Where(),
+                  StrategySpec::KindName(spec_.kind));
+    }
+    std::stable_sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
+      return a.line != b.line ? a.line < b.line : a.order < b.order;
+    });
+    for (const Candidate& c : found) {
+      if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) break;
+      const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
+      list.passes.push_back(
+          std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, c.start.uv,
+                                        c.end.uv, c.length, spec_.newton));
+    }
+    return list;
+  }
+
+ private:
+  int FaceSign() const { return face_.Face().Orientation() == TopAbs_REVERSED ? -1 : 1; }
+
+  int DetermineSide() const {
+    if (spec_.side == StrategySpec::Side::kFace) return FaceSign();
+    if (spec_.side == StrategySpec::Side::kReversed) return -FaceSign();
+    double up = 0.0;
+    geometry::SurfaceDerivatives d;
+    for (int i = 0; i <= 16; ++i) {
+      for (int j = 0; j <= 16; ++j) {
+        const double u = face_.U0() + (face_.U1() - face_.U0()) * i / 16.0;
+        const double v = face_.V0() + (face_.V1() - face_.V0()) * j / 16.0;
+        if (!face_.Inside(u, v)) continue;
+        face_.D2(u, v, &d);
+        const Eigen::Vector3d n = d.su.cross(d.sv);
+        if (n.norm() > 0.0) up += n.z() / n.norm();
+      }
+    }
+    return up >= 0.0 ? 1 : -1;
+  }
+
+  bool IsPlane() const { return spec_.kind != StrategySpec::Kind::kUv; }
+
+  // Evaluates with the feed oriented along the line's travel at this point (plane strategies:
+  // the sign of unit(n x normal) that goes along `direction`).
+  EvalStatus EvaluateOriented(PassConstraint* c, const Eigen::Vector3d& direction,
+                              const Eigen::Vector2d& uv, ContactPoint* out) const {
+    PassEvaluator e(face_, tool_, orientation_, side_, *c);
+    EvalStatus st = e.Evaluate(uv, out);
+    if (st == EvalStatus::kOk && IsPlane() && out->feed.dot(direction) < 0.0) {
+      c->feed_sign = -c->feed_sign;
+      PassEvaluator flipped(face_, tool_, orientation_, side_, *c);
+      st = flipped.Evaluate(uv, out);
+    }
+    return st;
+  }
+
+  std::string ExtentText() const {
+    return IsPlane() ? fmt::format("[{:.6g}, {:.6g}] mm along the plane normal", lo_, hi_)
+                     : fmt::format("[{:.6g}, {:.6g}] in {}", lo_, hi_, spec_.along_u ? "v" : "u");
+  }
+
+  std::vector<PassConstraint> Lines(double stepover) {
+    PassConstraint base;
+    base.normal = spec_.plane_normal;
+    base.value = 0.0;
+    std::vector<PassConstraint> lines;
+    double step = stepover;
+    if (IsPlane()) {
+      base.kind = spec_.kind == StrategySpec::Kind::kPlaneCl ? PassConstraint::Kind::kPlaneCl
+                                                             : PassConstraint::Kind::kPlaneCc;
+      // The face's extent along the normal, from a grid of (tip or contact) points.
+      lo_ = INFINITY, hi_ = -INFINITY;
+      ContactPoint c;
+      for (int i = 0; i <= 40; ++i) {
+        for (int j = 0; j <= 40; ++j) {
+          const Eigen::Vector2d uv(face_.U0() + (face_.U1() - face_.U0()) * i / 40.0,
+                                   face_.V0() + (face_.V1() - face_.V0()) * j / 40.0);
+          if (!face_.Inside(uv.x(), uv.y())) continue;
+          PassConstraint probe = base;
+          if (EvaluateOriented(&probe, spec_.direction, uv, &c) != EvalStatus::kOk) continue;
+          lo_ = std::min(lo_, c.g);
+          hi_ = std::max(hi_, c.g);
+        }
+      }
+      if (!(lo_ <= hi_)) {
+        throw Error("{}: no point of the face evaluates (degenerate surface?)", face_.Where());
+      }
+    } else {
+      base.kind = spec_.along_u ? PassConstraint::Kind::kIsoV : PassConstraint::Kind::kIsoU;
+      lo_ = spec_.along_u ? face_.V0() : face_.U0();
+      hi_ = spec_.along_u ? face_.V1() : face_.U1();
+      // mm per parameter unit across the lines, averaged over the face.
+      double sum = 0.0;
+      int count = 0;
+      geometry::SurfaceDerivatives d;
+      for (int i = 0; i <= 16; ++i) {
+        for (int j = 0; j <= 16; ++j) {
+          const double u = face_.U0() + (face_.U1() - face_.U0()) * i / 16.0;
+          const double v = face_.V0() + (face_.V1() - face_.V0()) * j / 16.0;
+          face_.D2(u, v, &d);
+          sum += (spec_.along_u ? d.sv : d.su).norm();
+          ++count;
+        }
+      }
+      base.iso_scale = sum / count;
+      if (!(base.iso_scale > 0.0)) throw Error("{}: the face is degenerate", face_.Where());
+      step = stepover / base.iso_scale;
+    }
+    std::vector<double> values;
+    if (spec_.range) {
+      const auto [first, last] = *spec_.range;
+      for (int k = 0; first + k * step <= last + 1e-9 * (1.0 + std::abs(last)); ++k) {
+        values.push_back(first + k * step);
+      }
+    } else {
+      const int n = std::max(1, static_cast<int>(std::ceil((hi_ - lo_) / step - 1e-9)));
+      const double actual = (hi_ - lo_) / n;
+      for (int k = 0; k < n; ++k) values.push_back(lo_ + (k + 0.5) * actual);
+    }
+    for (std::size_t k = 0; k < values.size(); ++k) {
+      PassConstraint c = base;
+      c.value = values[k];
+      const bool reverse = spec_.mode == StrategySpec::PathMode::kZigzag && k % 2 == 1;
+      c.feed_sign = reverse ? -1 : 1;
+      lines.push_back(c);
+    }
+    return lines;
+  }
+
+  Eigen::Vector3d Direction(const PassConstraint& c) const {
+    return spec_.direction * static_cast<double>(c.feed_sign);
+  }
+
+  [[noreturn]] void Fail(int line, const PassConstraint& c, double s, const Eigen::Vector2d& uv,
+                         const std::string& what) const {
+    throw Error(
+        "{}, line {} ({}), arc length {:.6f} mm from the pass start, (u, v) = ({:.9g}, "
+        "{:.9g}): {}",
+        face_.Where(), line + 1, c.Describe(), s, uv.x(), uv.y(), what);
+  }
+
+  // Roots of the line on the face's boundary, each traced if the pass enters the face there.
+  void FindPasses(int line, const PassConstraint& constraint, std::vector<Candidate>* out) const {
+    const Eigen::Vector3d direction = Direction(constraint);
+    PassConstraint scan = constraint;
+    scan.feed_sign = 1;
+    for (const auto& loop : face_.Boundary(64)) {
+      ContactPoint a, b;
+      EvalStatus sa = EvalStatus::kStalled;
+      for (std::size_t i = 0; i < loop.size(); ++i) {
+        PassConstraint cb = scan;
+        const EvalStatus sb =
+            IsPlane()
+                ? EvaluateOriented(&cb, direction, loop[i], &b)
+                : PassEvaluator(face_, tool_, orientation_, side_, scan).Evaluate(loop[i], &b);
+        if (sb == EvalStatus::kDegenerateNormal) {
+          Fail(line, constraint, 0.0, loop[i],
+               fmt::format("{}; passes end on this boundary", EvalStatusText(sb)));
+        }
+        if (i > 0 && sa == EvalStatus::kOk && sb == EvalStatus::kOk &&
+            ((a.g <= 0.0 && b.g > 0.0) || (a.g > 0.0 && b.g <= 0.0))) {
+          Root(line, constraint, loop[i - 1], a.g, loop[i], b.g, out);
+        }
+        a = b;
+        sa = sb;
+      }
+    }
+  }
+
+  void Root(int line, const PassConstraint& constraint, Eigen::Vector2d a, double ga,
+            Eigen::Vector2d b, double gb, std::vector<Candidate>* out) const {
+    const Eigen::Vector3d direction = Direction(constraint);
+    PassConstraint c = constraint;
+    ContactPoint r;
+    for (int it = 0; it < 80 && (b - a).norm() > 1e-15 * (1.0 + a.norm()); ++it) {
+      const Eigen::Vector2d m = 0.5 * (a + b);
+      c.feed_sign = constraint.feed_sign;
+      if (IsPlane()) c.feed_sign = 1;
+      if ((IsPlane() ? EvaluateOriented(&c, direction, m, &r)
+                     : PassEvaluator(face_, tool_, orientation_, side_, c).Evaluate(m, &r)) !=
+          EvalStatus::kOk) {
+        return;
+      }
+      if ((r.g <= 0.0) == (ga <= 0.0)) {
+        a = m, ga = r.g;
+      } else {
+        b = m, gb = r.g;
+      }
+    }
+    if (IsPlane()) c.feed_sign = 1;
+    const EvalStatus st = IsPlane()
+                              ? EvaluateOriented(&c, direction, a, &r)
+                              : PassEvaluator(face_, tool_, orientation_, side_, c).Evaluate(a, &r);
+    if (st != EvalStatus::kOk) return;
+    const PassEvaluator e(face_, tool_, orientation_, side_, c);
+    const NewtonOptions& o = spec_.newton;
+    EvalStatus status;
+    ContactPoint fwd, back;
+    int its = 0;
+    const bool f_ok = e.Step(r, kProbeMm, o, &fwd, &status, &its) && e.Inside(fwd.uv);
+    if (!f_ok) return;  // the pass leaves the face here (or only touches it)
+    ContactPoint start;
+    if (!e.Inside(r.uv)) {
+      start = Bisect(e, fwd, -1.0, kProbeMm);
+    } else {
+      // Walk back until outside, then bisect: the boundary crossing behind r.
+      ContactPoint cur = r;
+      double h = kProbeMm;
+      bool found = false;
+      for (int k = 0; k < 40; ++k) {
+        if (!e.Step(cur, -h, o, &back, &status, &its)) return;
+        if (!e.Inside(back.uv)) {
+          start = Bisect(e, cur, -1.0, h);
+          found = true;
+          break;
+        }
+        cur = back;
+        h = std::min(2.0 * h, spec_.trace_step_mm);
+      }
+      if (!found) return;  // an interior root: its pass is found from its own entry
+    }
+    Candidate cand;
+    cand.line = line;
+    cand.constraint = c;
+    cand.start = start;
+    Trace(e, &cand);
+    cand.order = start.tip.dot(direction);
+    // Both ends of a crossing are entries for opposite feed signs: keep the one that travels
+    // along the strategy's direction.
+    // Iso lines travel towards increasing (or, reversed, decreasing) parameter: no choice here.
+    const double along = IsPlane() ? (cand.end.tip - cand.start.tip).dot(direction) : 1.0;
+    if (along < 0.0) return;
+    // With a tilted tool the two orientations are different passes (the tilt follows the feed)
+    // whose ends lie within a few tool radii: keep the one that goes further along `direction`.
+    const double near = 2.0 * tool_.radius + 1e-3;
+    for (Candidate& other : *out) {
+      if (other.line != line) continue;
+      if ((other.start.tip - start.tip).norm() < 1e-6) return;
+      if (IsPlane() && (other.start.tip - cand.end.tip).norm() < near &&
+          (other.end.tip - cand.start.tip).norm() < near) {
+        const double other_along = (other.end.tip - other.start.tip).dot(direction);
+        if (other_along >= along) return;
+        other = cand;
+        return;
+      }
+    }
+    out->push_back(cand);
+  }
+
+  // The last point inside the face on the way from `inside` (sign +1: along the travel) towards a
+  // point `chord_out` mm away that is outside.
+  ContactPoint Bisect(const PassEvaluator& e, const ContactPoint& inside, double sign,
+                      double chord_out) const {
+    double lo = 0.0, hi = chord_out;
+    ContactPoint best = inside, p;
+    EvalStatus status;
+    while (hi - lo > kBoundaryMm) {
+      const double mid = 0.5 * (lo + hi);
+      const Eigen::Vector2d guess = inside.uv + inside.duv * (sign * mid);
+      if (e.SolveChord(inside.tip, mid, guess, spec_.newton, &p, &status) >= 0 &&
+          (p.tip - inside.tip).dot(inside.tangent) * sign > 0.0 && e.Inside(p.uv)) {
+        lo = mid;
+        best = p;
+      } else {
+        hi = mid;
+      }
+    }
+    return best;
+  }
+
+  void Trace(const PassEvaluator& e, Candidate* cand) const {
+    ContactPoint cur = cand->start, next;
+    double s = 0.0;
+    EvalStatus status = EvalStatus::kOk;
+    int its = 0;
+    CheckGouge(*cand, cur, s);
+    for (long k = 0;; ++k) {
+      if (k > 4000000)
+        Fail(cand->line, cand->constraint, s, cur.uv, "the pass never leaves the face");
+      const double h = spec_.trace_step_mm;
+      if (!e.Step(cur, h, spec_.newton, &next, &status, &its)) {
+        Fail(cand->line, cand->constraint, s, cur.uv,
+             status == EvalStatus::kOk ? fmt::format("the Newton solve did not converge to {} mm",
+                                                     spec_.newton.tolerance_mm)
+                                       : EvalStatusText(status));
+      }
+      if (!e.Inside(next.uv)) {
+        const ContactPoint end = Bisect(e, cur, 1.0, h);
+        s += ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
+        cand->end = end;
+        cand->length = s;
+        CheckGouge(*cand, end, s);
+        return;
+      }
+      s += h;
+      cur = next;
+      CheckGouge(*cand, cur, s);
+    }
+  }
+
+  void CheckGouge(const Candidate& cand, const ContactPoint& p, double s) const {
+    // Contact above the ball's equator by less than 0.006 deg overlaps the shank by < r 1e-8.
+    if (p.n.dot(p.axis) < -1e-4) {
+      Fail(cand.line, cand.constraint, s, p.uv,
+           fmt::format("undercut: the surface normal points {:.3g} deg away from the tool axis, so "
+                       "the tool would touch with its upper side (use a 5-axis orientation or "
+                       "another side)",
+                       std::acos(std::clamp(p.n.dot(p.axis), -1.0, 1.0)) * 180.0 / M_PI));
+    }
+    if (p.concave_curvature > max_curvature_) {
+      Fail(cand.line, cand.constraint, s, p.uv,
+           fmt::format("the tool gouges: the surface's concave radius of curvature here is {:.6g} "
+                       "mm, smaller than the tool's {} mm ({})",
+                       1.0 / p.concave_curvature, 1.0 / max_curvature_, tool_.Describe()));
+    }
+  }
+
+  const geometry::FaceSurface& face_;
+  const geometry::Tool& tool_;
+  const Orientation& orientation_;
+  const StrategySpec& spec_;
+  int side_ = 1;
+  double max_curvature_ = INFINITY;
+  double lo_ = 0.0, hi_ = 0.0;
+};
+
+}  // namespace
+
+const char* StrategySpec::KindName(Kind kind) {
+  switch (kind) {
+    case Kind::kPlaneCl:
+      return "plane_cl";
+    case Kind::kPlaneCc:
+      return "plane_cc";
+    case Kind::kUv:
+      return "uv";
+  }
+  return "?";
+}
+
+std::string PassList::Summary() const {
+  double total = 0.0;
+  for (const auto& p : passes) total += *p->Length();
+  return fmt::format("{} passes, {:.6g} mm of tip path, stepover {:.6g} mm", passes.size(), total,
+                     stepover_mm);
+}
+
+double StepoverFromScallop(const geometry::Tool& tool, const Orientation& orientation, double h) {
+  if (!(h > 0.0)) throw Error("scallop height: expected a positive number of mm, got {}", h);
+  double radius = tool.corner_radius;
+  if (tool.kind == geometry::Tool::Kind::kBallEnd) radius = tool.radius;
+  if (tool.kind != geometry::Tool::Kind::kBallEnd &&
+      orientation.kind == Orientation::Kind::kTiltYaw && orientation.tilt_rad != 0.0) {
+    radius = tool.corner_radius + tool.TorusRadius() / std::abs(std::sin(orientation.tilt_rad));
+  }
+  if (!(radius > h)) {
+    throw Error(
+        "scallop height {} mm: the tool's effective radius across the feed is {} mm; "
+        "give stepover_mm instead",
+        h, radius);
+  }
+  return 2.0 * std::sqrt(h * (2.0 * radius - h));
+}
+
+PassList BuildPasses(const geometry::FaceSurface& face, const geometry::Tool& tool,
+                     const Orientation& orientation, const StrategySpec& spec) {
+  Builder builder(face, tool, orientation, spec);
+  return builder.Build();
+}
+
+}  // namespace dtis::strategies

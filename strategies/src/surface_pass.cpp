@@ -1,0 +1,299 @@
+#include "dtis/strategies/surface_pass.hpp"
+
+#include <ceres/jet.h>
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+namespace dtis::strategies {
+namespace {
+
+using Jet = ceres::Jet<double, 2>;
+using Vec3J = Eigen::Matrix<Jet, 3, 1>;
+
+Jet Seed(double value, double du, double dv) {
+  Jet j(value);
+  j.v << du, dv;
+  return j;
+}
+
+Eigen::Vector3d Value(const Vec3J& v) { return {v.x().a, v.y().a, v.z().a}; }
+
+Eigen::Matrix<double, 3, 2> Gradient(const Vec3J& v) {
+  Eigen::Matrix<double, 3, 2> m;
+  for (int i = 0; i < 3; ++i) m.row(i) = v[i].v.transpose();
+  return m;
+}
+
+}  // namespace
+
+const char* EvalStatusText(EvalStatus status) {
+  switch (status) {
+    case EvalStatus::kOk:
+      return "ok";
+    case EvalStatus::kDegenerateNormal:
+      return "the surface normal is undefined (S_u x S_v vanishes: a collapsed edge or pole)";
+    case EvalStatus::kFeedUndefined:
+      return "the feed direction is undefined (the surface normal is along the strategy plane's "
+             "normal)";
+    case EvalStatus::kFlatContact:
+      return "the tool sits flat on the surface (normal along the tool axis): the contact point "
+             "does not fix the cutter location; tilt the tool or use a ball end";
+    case EvalStatus::kStalled:
+      return "the pass has no direction here (the constraint is singular)";
+  }
+  return "?";
+}
+
+std::string PassConstraint::Describe() const {
+  switch (kind) {
+    case Kind::kPlaneCl:
+    case Kind::kPlaneCc:
+      return fmt::format("{} plane ({:.6g}, {:.6g}, {:.6g}) . x = {:.9g} mm",
+                         kind == Kind::kPlaneCl ? "tip" : "contact", normal.x(), normal.y(),
+                         normal.z(), value);
+    case Kind::kIsoV:
+      return fmt::format("iso-v line v = {:.9g}", value);
+    case Kind::kIsoU:
+      return fmt::format("iso-u line u = {:.9g}", value);
+  }
+  return "?";
+}
+
+PassEvaluator::PassEvaluator(const geometry::FaceSurface& face, const geometry::Tool& tool,
+                             const Orientation& orientation, int side,
+                             const PassConstraint& constraint)
+    : face_(face), tool_(tool), orientation_(orientation), side_(side), constraint_(constraint) {}
+
+EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out) const {
+  geometry::SurfaceDerivatives d;
+  face_.D2(uv.x(), uv.y(), &d);
+  Vec3J s, su, sv;
+  for (int i = 0; i < 3; ++i) {
+    s[i] = Seed(d.p[i], d.su[i], d.sv[i]);
+    su[i] = Seed(d.su[i], d.suu[i], d.suv[i]);
+    sv[i] = Seed(d.sv[i], d.suv[i], d.svv[i]);
+  }
+  const Vec3J big_n = su.cross(sv);
+  const Jet n_norm = sqrt(big_n.squaredNorm());
+  if (!(n_norm.a > 1e-10 * d.su.norm() * d.sv.norm()) || !(n_norm.a > 1e-300)) {
+    return EvalStatus::kDegenerateNormal;
+  }
+  const Vec3J n = big_n * (Jet(side_) / n_norm);
+  Vec3J f;
+  switch (constraint_.kind) {
+    case PassConstraint::Kind::kPlaneCl:
+    case PassConstraint::Kind::kPlaneCc: {
+      const Vec3J m = n.cross(constraint_.normal.cast<Jet>());
+      const Jet m_norm = sqrt(m.squaredNorm());
+      if (!(m_norm.a > 1e-9)) return EvalStatus::kFeedUndefined;
+      f = m * (Jet(constraint_.feed_sign) / m_norm);
+      break;
+    }
+    case PassConstraint::Kind::kIsoV:
+    case PassConstraint::Kind::kIsoU: {
+      const Vec3J& t = constraint_.kind == PassConstraint::Kind::kIsoV ? su : sv;
+      const Jet t_norm = sqrt(t.squaredNorm());
+      if (!(t_norm.a > 1e-300)) return EvalStatus::kDegenerateNormal;
+      f = t * (Jet(constraint_.feed_sign) / t_norm);
+      break;
+    }
+  }
+  const Vec3J a = ToolAxis(orientation_, n, f);
+  Vec3J tip;
+  if (!geometry::TipFromContact(tool_, s, n, a, &tip)) return EvalStatus::kFlatContact;
+  Jet g;
+  switch (constraint_.kind) {
+    case PassConstraint::Kind::kPlaneCl:
+      g = tip.dot(constraint_.normal.cast<Jet>()) - Jet(constraint_.value);
+      break;
+    case PassConstraint::Kind::kPlaneCc:
+      g = s.dot(constraint_.normal.cast<Jet>()) - Jet(constraint_.value);
+      break;
+    case PassConstraint::Kind::kIsoV:
+      g = (Seed(uv.y(), 0.0, 1.0) - Jet(constraint_.value)) * Jet(constraint_.iso_scale);
+      break;
+    case PassConstraint::Kind::kIsoU:
+      g = (Seed(uv.x(), 1.0, 0.0) - Jet(constraint_.value)) * Jet(constraint_.iso_scale);
+      break;
+  }
+  out->uv = uv;
+  out->p = d.p;
+  out->n = Value(n);
+  out->feed = Value(f);
+  out->axis = Value(a);
+  out->tip = Value(tip);
+  out->dp << d.su, d.sv;
+  out->dtip = Gradient(tip);
+  out->g = g.a;
+  out->dg = g.v;
+  // The travel: the direction in (u, v) that keeps g = 0, oriented along the feed.
+  Eigen::Vector2d perp(-out->dg.y(), out->dg.x());
+  Eigen::Vector3d w = out->dtip * perp;
+  const double speed = w.norm();
+  if (!(speed > 1e-12 * (1.0 + out->dg.norm()))) return EvalStatus::kStalled;
+  if (w.dot(out->feed) < 0.0) perp = -perp, w = -w;
+  out->duv = perp / speed;
+  out->tangent = w / speed;
+  // Principal curvatures with the normal on the tool's side: positive bends towards the tool.
+  const double e = d.su.dot(d.su), ff = d.su.dot(d.sv), gg = d.sv.dot(d.sv);
+  const double l = out->n.dot(d.suu), m = out->n.dot(d.suv), nn = out->n.dot(d.svv);
+  const double det1 = e * gg - ff * ff, b = e * nn - 2.0 * ff * m + gg * l, det2 = l * nn - m * m;
+  const double disc = std::max(0.0, b * b - 4.0 * det1 * det2);
+  out->concave_curvature = (b + std::sqrt(disc)) / (2.0 * det1);
+  return EvalStatus::kOk;
+}
+
+int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
+                              const NewtonOptions& options, ContactPoint* out,
+                              EvalStatus* status) const {
+  const double limit = std::max(4.0 * chord, options.max_step_mm);
+  for (int it = 0;; ++it) {
+    *status = Evaluate(uv, out);
+    if (*status != EvalStatus::kOk) return -1;
+    const Eigen::Vector3d d = out->tip - anchor;
+    const double dist = d.norm();
+    const double f1 = out->g, f2 = dist - chord;
+    if (std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= options.tolerance_mm) return it;
+    if (it == options.max_iterations || !(dist > 0.0)) return -1;
+    Eigen::Matrix2d j;
+    j.row(0) = out->dg.transpose();
+    j.row(1) = (d.transpose() * out->dtip) / dist;
+    const double det = j.determinant();
+    if (!(std::abs(det) > 1e-300)) return -1;
+    Eigen::Vector2d step = -j.inverse() * Eigen::Vector2d(f1, f2);
+    const double move = (out->dtip * step).norm();
+    if (move > limit) step *= limit / move;
+    uv += step;
+  }
+}
+
+bool PassEvaluator::Step(const ContactPoint& from, double delta, const NewtonOptions& options,
+                         ContactPoint* to, EvalStatus* status, int* iterations) const {
+  const double target = std::abs(delta);
+  int its = SolveChord(from.tip, target, from.uv + from.duv * delta, options, to, status);
+  if (its < 0) return false;
+  *iterations += its;
+  const double arc = ArcFromChord(target, from.tangent, to->tangent);
+  if (std::abs(arc - target) > options.tolerance_mm) {
+    const Eigen::Vector2d first = to->uv;
+    its = SolveChord(from.tip, target * target / arc, first, options, to, status);
+    if (its < 0) return false;
+    *iterations += its;
+  }
+  // The chord sphere is cut by the pass twice: make sure the solve took the requested side.
+  return (to->tip - from.tip).dot(from.tangent) * delta > 0.0;
+}
+
+double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb) {
+  const double theta = std::atan2(ta.cross(tb).norm(), ta.dot(tb));
+  const double h = 0.5 * theta;
+  if (h < 1e-4) return chord * (1.0 + h * h / 6.0);
+  return chord * h / std::sin(h);
+}
+
+SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const Eigen::Vector2d& start,
+                         const Eigen::Vector2d& end, double length, const NewtonOptions& options)
+    : eval_(evaluator), index_(index), length_(length), options_(options) {
+  // The builder evaluated both ends already; a failure here is a programming error.
+  if (eval_.Evaluate(start, &start_) != EvalStatus::kOk ||
+      eval_.Evaluate(end, &end_) != EvalStatus::kOk) {
+    throw std::logic_error("SurfacePass: an end of the pass does not evaluate");
+  }
+}
+
+PathState SurfacePass::Start() const {
+  PathState st;
+  st.u = start_.uv.x();
+  st.v = start_.uv.y();
+  return st;
+}
+
+Pose SurfacePass::StartPose() const { return {start_.tip, start_.axis}; }
+Pose SurfacePass::EndPose() const { return {end_.tip, end_.axis}; }
+
+EvalStatus SurfacePass::Evaluate(double u, double v, ContactPoint* out) const {
+  return eval_.Evaluate({u, v}, out);
+}
+
+const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
+  const Eigen::Vector2d uv(state.u, state.v);
+  for (int k = 0; k < 2; ++k) {
+    if (cache_valid_[k] && cache_[k].uv == uv) return cache_[*slot = k];
+  }
+  *slot = 0;
+  if (uv == start_.uv) return start_;
+  if (uv == end_.uv) return end_;
+  // States come from this pass, so they evaluate; if one does not, the next solve reports it.
+  eval_.Evaluate(uv, &cache_[0]);
+  cache_valid_[0] = true;
+  return cache_[0];
+}
+
+PathSample SurfacePass::EndSample(double s) const {
+  PathSample out;
+  out.status = s > length_ ? PathStatus::kEnd : PathStatus::kOk;
+  out.state.s = std::min(s, length_);
+  out.state.u = end_.uv.x();
+  out.state.v = end_.uv.y();
+  out.pose = {end_.tip, end_.axis};
+  return out;
+}
+
+PathSample SurfacePass::At(const PathState& from, double s) const {
+  if (s >= length_) return EndSample(s);
+  PathSample out;
+  if (s <= 0.0) {
+    out.state = Start();
+    out.pose = StartPose();
+    return out;
+  }
+  int from_slot = 0;
+  ContactPoint cur = From(from, &from_slot);
+  double cur_s = from.s;
+  // The marched arc length and the traced length differ by the arc estimates' error (below 1e-6
+  // mm per pass); within this distance of an end, the boundary is that end.
+  constexpr double kSnapMm = 1e-4;
+  while (s != cur_s) {
+    const double delta = std::clamp(s - cur_s, -options_.max_step_mm, options_.max_step_mm);
+    ContactPoint next;
+    EvalStatus status = EvalStatus::kOk;
+    if (!eval_.Step(cur, delta, options_, &next, &status, &out.iterations)) {
+      out.status = PathStatus::kNoConvergence;
+      out.state = from;
+      return out;
+    }
+    // The pass is what the builder traced from its start to its end. Only near those ends does
+    // the face's boundary matter here: a pass that skims the boundary between them (closer than
+    // the trace's step could see) is followed on the surface's natural extension.
+    if (!eval_.Inside(next.uv)) {
+      if (delta > 0.0 && s >= length_ - kSnapMm) return EndSample(s);
+      if (delta < 0.0 && s <= kSnapMm) {
+        out.state = Start();
+        out.state.s = s;
+        out.pose = StartPose();
+        return out;
+      }
+    }
+    cur = next;
+    cur_s += delta;
+    if (std::abs(s - cur_s) < 1e-12 * (1.0 + std::abs(s))) cur_s = s;
+  }
+  cache_[1 - from_slot] = cur;
+  cache_valid_[1 - from_slot] = true;
+  out.state.s = s;
+  out.state.u = cur.uv.x();
+  out.state.v = cur.uv.y();
+  out.pose = {cur.tip, cur.axis};
+  return out;
+}
+
+std::string SurfacePass::Describe(const PathState& state) const {
+  return fmt::format("{}, pass {} ({}), arc length {:.6f} mm, (u, v) = ({:.9g}, {:.9g})",
+                     eval_.Face().Where(), index_, eval_.Constraint().Describe(), state.s, state.u,
+                     state.v);
+}
+
+}  // namespace dtis::strategies

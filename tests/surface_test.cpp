@@ -1,0 +1,366 @@
+// Surface strategies (DTIS): STEP import, passes solved by Newton on the exact face, every planned
+// setpoint on the cutter-location surface and on its strategy plane, and the error paths.
+#include <gtest/gtest.h>
+
+#include <BRep_Tool.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <Geom_Surface.hxx>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/step_model.hpp"
+#include "dtis/interp/vpop.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "dtis/strategies/strategy.hpp"
+#include "test_support.hpp"
+
+namespace dtis {
+namespace {
+
+using geometry::FaceSurface;
+using geometry::StepModel;
+using geometry::Tool;
+using strategies::Orientation;
+using strategies::StrategySpec;
+
+const std::string kTrj8 = "samples/parts/occt_trj8_c2-db-214_single_bspline_face.stp";
+const std::string kStrip = "samples/parts/occt_OCC26308-Face_single_bspline_face.stp";
+
+Tool Ball(double r) {
+  Tool t;
+  t.kind = Tool::Kind::kBallEnd;
+  t.radius = t.corner_radius = r;
+  return t;
+}
+
+// Distance from a point to the exact face surface, by OpenCASCADE's projection (independent of
+// the strategies' Newton solves).
+double DistanceToSurface(const TopoDS_Face& face, const Eigen::Vector3d& p) {
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(face);
+  GeomAPI_ProjectPointOnSurf proj(gp_Pnt(p.x(), p.y(), p.z()), s);
+  EXPECT_GT(proj.NbPoints(), 0);
+  return proj.LowerDistance();
+}
+
+TEST(StepModel, ListsTheFacesOfRealFiles) {
+  const StepModel trj8 = StepModel::Load(test::Source(kTrj8));
+  ASSERT_EQ(trj8.FaceCount(), 1);
+  const auto& f = trj8.Info(1);
+  EXPECT_EQ(f.type, "bspline");
+  EXPECT_EQ(f.u_degree, 5);
+  EXPECT_EQ(f.v_degree, 3);
+  EXPECT_EQ(f.u_poles, 21);
+  EXPECT_EQ(f.v_poles, 4);
+  EXPECT_FALSE(f.rational);
+  EXPECT_FALSE(f.trimmed);
+  EXPECT_NEAR((f.box_max - f.box_min).z(), 76.07, 0.05);  // PROVENANCE: 19 x 97 x 76 mm box
+  const StepModel rational =
+      StepModel::Load(test::Source("samples/parts/occt_bug29478_single_rational_face_worknc.stp"));
+  EXPECT_TRUE(rational.Info(1).rational);
+  const StepModel fuselage =
+      StepModel::Load(test::Source("samples/parts/occt_bug28366_fuselage_8faces.stp"));
+  EXPECT_EQ(fuselage.FaceCount(), 8);
+}
+
+TEST(StepModel, BadFilesGetOneClearMessage) {
+  const auto message = [](const std::string& path) {
+    try {
+      StepModel::Load(path);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("/nonexistent.stp").find("no such file"), std::string::npos);
+  EXPECT_NE(message(test::Source("README.md")).find("not a STEP file"), std::string::npos);
+  const std::string nist =
+      message(test::Source("samples/parts/nist_iso14649_ex1E_freeform_operation.stp"));
+  EXPECT_NE(nist.find("MACHINING_SCHEMA"), std::string::npos) << nist;
+  const StepModel trj8 = StepModel::Load(test::Source(kTrj8));
+  try {
+    trj8.Face(2);
+    FAIL() << "face 2 should not exist";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("faces 1 to 1"), std::string::npos) << e.what();
+  }
+}
+
+struct PlannedPass {
+  std::vector<Pose> poses;  // forward kinematics of every setpoint
+  strategies::PassConstraint constraint;
+};
+
+// Plans the first pass of `spec` on an XYZ machine and maps every setpoint back to a pose.
+PlannedPass PlanFirstPass(const TopoDS_Face& face, const Tool& tool, const StrategySpec& spec) {
+  const FaceSurface surface(face, "test face");
+  const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+  EXPECT_FALSE(passes.passes.empty());
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  interp::VpopOptions o;
+  o.feed_mm_s = 50.0;
+  test::Collect sink;
+  interp::PlanVpop(*passes.passes[0], *machine, o, sink);
+  PlannedPass out;
+  out.constraint = passes.passes[0]->Evaluator().Constraint();
+  for (const auto& sp : sink.points) out.poses.push_back(machine->Forward(sp.q));
+  return out;
+}
+
+// Every setpoint of a planned plane_cl pass: the ball centre is one radius from the exact surface
+// (the tip is on the cutter-location surface) and the tip is on the pass's plane.
+void ExpectOnSurfaceAndPlane(const TopoDS_Face& face, const StrategySpec& spec, double radius) {
+  SCOPED_TRACE(spec.plane_normal.transpose());
+  const PlannedPass pass = PlanFirstPass(face, Ball(radius), spec);
+  ASSERT_GT(pass.poses.size(), 100u);
+  double worst_surface = 0.0, worst_plane = 0.0;
+  for (const Pose& p : pass.poses) {
+    const Eigen::Vector3d centre = p.tip + p.axis * radius;
+    worst_surface = std::max(worst_surface, std::abs(DistanceToSurface(face, centre) - radius));
+    worst_plane =
+        std::max(worst_plane, std::abs(p.tip.dot(pass.constraint.normal) - pass.constraint.value));
+  }
+  EXPECT_LT(worst_surface, 1e-6);
+  EXPECT_LT(worst_plane, 1e-6);
+}
+
+TEST(SurfacePass, EverySetpointLiesOnTheCutterLocationSurfaceAndItsPlane_Trj8) {
+  const StepModel m = StepModel::Load(test::Source(kTrj8));
+  const TopoDS_Face face = geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0});
+  StrategySpec spec;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 4.0;
+  ExpectOnSurfaceAndPlane(face, spec, 3.0);
+}
+
+TEST(SurfacePass, EverySetpointLiesOnTheCutterLocationSurfaceAndItsPlane_Strip) {
+  const StepModel m = StepModel::Load(test::Source(kStrip));
+  // The strip lies near (1966, -230, 43) mm: set it up within the machine's travel.
+  const TopoDS_Face face = geometry::PlaceFace(m.Face(1), {0, 0, 0}, {-1966, 230, -43});
+  StrategySpec spec;
+  spec.plane_normal = Eigen::Vector3d(1, 0.2, 0).normalized();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 0.5;
+  ExpectOnSurfaceAndPlane(face, spec, 2.0);
+}
+
+TEST(SurfacePass, PlaneCcPutsTheContactPointOnThePlane) {
+  const StepModel m = StepModel::Load(test::Source(kStrip));
+  const FaceSurface surface(m.Face(1), "strip");
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kPlaneCc;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 1.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+  ASSERT_FALSE(passes.passes.empty());
+  const auto& pass = *passes.passes[0];
+  PathState st = pass.Start();
+  for (double s = 0.0; s < *pass.Length(); s += 0.37) {
+    const PathSample smp = pass.At(st, s);
+    ASSERT_EQ(smp.status, PathStatus::kOk);
+    strategies::ContactPoint c;
+    ASSERT_EQ(pass.Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+    EXPECT_NEAR(c.p.x(), pass.Evaluator().Constraint().value, 1e-6);
+    // The contact point is on the exact surface and the tip is one ball radius off it.
+    EXPECT_NEAR(DistanceToSurface(m.Face(1), c.p), 0.0, 1e-7);
+    EXPECT_NEAR(DistanceToSurface(m.Face(1), smp.pose.tip + smp.pose.axis * 2.0), 2.0, 1e-6);
+    st = smp.state;
+  }
+}
+
+TEST(SurfacePass, IsoLinesKeepTheirParameterAndArcLengthIsTheTipPath) {
+  const StepModel m = StepModel::Load(test::Source(kStrip));
+  const FaceSurface surface(m.Face(1), "strip");
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kUv;
+  spec.along_u = false;
+  spec.stepover_mm = 1.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+  ASSERT_FALSE(passes.passes.empty());
+  const auto& pass = *passes.passes[0];
+  const double u = pass.Evaluator().Constraint().value;
+  // March in small steps and sum the chords: the pass length is the tip's arc length.
+  PathState st = pass.Start();
+  Eigen::Vector3d last = pass.StartPose().tip;
+  double chords = 0.0;
+  const double length = *pass.Length();
+  for (int k = 1; k <= 4000; ++k) {
+    const PathSample smp = pass.At(st, length * k / 4000.0);
+    ASSERT_EQ(smp.status, PathStatus::kOk);
+    EXPECT_NEAR(smp.state.u, u, 1e-9);
+    chords += (smp.pose.tip - last).norm();
+    last = smp.pose.tip;
+    st = smp.state;
+  }
+  EXPECT_NEAR(chords, length, 1e-4 * length);
+  EXPECT_LT((last - pass.EndPose().tip).norm(), 1e-9);
+}
+
+TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
+  const StepModel m = StepModel::Load(test::Source(kTrj8));
+  const TopoDS_Face face = geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0});
+  const FaceSurface surface(face, "trj8");
+  Tool bull;
+  bull.kind = Tool::Kind::kBullNose;
+  bull.radius = 5.0;
+  bull.corner_radius = 1.0;
+  Orientation o;
+  o.kind = Orientation::Kind::kTiltYaw;
+  o.tilt_rad = 10.0 * std::numbers::pi / 180.0;
+  StrategySpec spec;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 6.0;
+  const auto passes = strategies::BuildPasses(surface, bull, o, spec);
+  ASSERT_FALSE(passes.passes.empty());
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  for (const auto& pass : passes.passes) {
+    PathState st = pass->Start();
+    AxisVector q, prev;
+    bool first = true;
+    for (double s = 0.0; s <= *pass->Length(); s += 0.25) {
+      const PathSample smp = pass->At(st, s);
+      ASSERT_EQ(smp.status, PathStatus::kOk);
+      strategies::ContactPoint c;
+      ASSERT_EQ(pass->Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+      EXPECT_NEAR(std::acos(std::clamp(c.axis.dot(c.n), -1.0, 1.0)), o.tilt_rad, 1e-9);
+      EXPECT_GT(c.feed.dot(c.tangent), 0.0);  // the feed goes along the travel
+      EXPECT_NEAR(c.axis.dot(c.feed), std::sin(o.tilt_rad), 1e-9);  // leaning forward along it
+      EXPECT_NEAR(smp.pose.tip.x(), pass->Evaluator().Constraint().value, 1e-6);
+      // The torus touches the surface: its corner centre is r from the contact point along n.
+      const Eigen::Vector3d corner = c.p + c.n * bull.corner_radius;
+      EXPECT_NEAR(DistanceToSurface(face, corner), bull.corner_radius, 1e-6);
+      // Inverse then forward kinematics on the XYZAC machine return the pose.
+      ASSERT_EQ(machine->Inverse(smp.pose, first ? nullptr : &prev, &q).status, InverseStatus::kOk);
+      const Pose back = machine->Forward(q);
+      EXPECT_LT((back.tip - smp.pose.tip).norm(), 1e-9);
+      EXPECT_LT((back.axis - smp.pose.axis).norm(), 1e-12);
+      prev = q;
+      first = false;
+      st = smp.state;
+    }
+  }
+}
+
+std::string BuildError(const std::string& file, int face_index, const Tool& tool,
+                       const StrategySpec& spec, const Eigen::Vector3d& rotate = {0, 0, 0}) {
+  const StepModel m = StepModel::Load(test::Source(file));
+  const FaceSurface surface(geometry::PlaceFace(m.Face(face_index), rotate, {0, 0, 0}), "the face");
+  try {
+    strategies::BuildPasses(surface, tool, Orientation{}, spec);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(SurfaceErrors, NameTheFaceTheLineAndWhere) {
+  StrategySpec spec;
+  spec.stepover_mm = 5.0;
+  const std::string degenerate =
+      BuildError("samples/parts/occt_bug28366_fuselage_8faces.stp", 1, Ball(3.0), spec);
+  EXPECT_NE(degenerate.find("normal is undefined"), std::string::npos) << degenerate;
+  EXPECT_NE(degenerate.find("(u, v) = "), std::string::npos) << degenerate;
+
+  const std::string gouge =
+      BuildError("samples/parts/occt_bug29478_single_rational_face_worknc.stp", 1, Ball(3.0), spec);
+  EXPECT_NE(gouge.find("gouges"), std::string::npos) << gouge;
+  EXPECT_NE(gouge.find("0.3 mm"), std::string::npos) << gouge;
+
+  const std::string undercut = BuildError(kTrj8, 1, Ball(3.0), spec);
+  EXPECT_NE(undercut.find("undercut"), std::string::npos) << undercut;
+  EXPECT_NE(undercut.find("arc length"), std::string::npos) << undercut;
+
+  StrategySpec far = spec;
+  far.range = std::array<double, 2>{500.0, 510.0};
+  const std::string misses = BuildError(kStrip, 1, Ball(1.0), far);
+  EXPECT_NE(misses.find("misses the face"), std::string::npos) << misses;
+}
+
+TEST(SurfaceErrors, AnOrientationTheMachineCannotHoldStopsThePlanWithWhere) {
+  const StepModel m = StepModel::Load(test::Source(kStrip));
+  const FaceSurface surface(m.Face(1), "strip");
+  Orientation o;
+  o.kind = Orientation::Kind::kTiltYaw;
+  o.tilt_rad = 0.2;
+  StrategySpec spec;
+  spec.stepover_mm = 1.0;
+  spec.direction = Eigen::Vector3d::UnitY();
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), o, spec);
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  interp::VpopOptions opt;
+  opt.feed_mm_s = 50.0;
+  test::Collect sink;
+  try {
+    interp::PlanVpop(*passes.passes[0], *xyz, opt, sink);
+    FAIL() << "a tilted axis on an XYZ machine must fail";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("pass 1"), std::string::npos) << what;
+    EXPECT_NE(what.find("(u, v)"), std::string::npos) << what;
+  }
+}
+
+// Random faces, strategies and tools: every pass that builds is followed exactly: each sample is
+// on its line (|g| within the Newton tolerance) and the march reaches the traced end.
+TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
+  std::mt19937_64 rng(test::g_seed + 3);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  const std::vector<std::string> files = {kTrj8, kStrip};
+  std::vector<StepModel> models;
+  for (const auto& f : files) models.push_back(StepModel::Load(test::Source(f)));
+  const long cases = std::max<long>(4, test::g_count / 100);
+  long built = 0;
+  for (long k = 0; k < cases; ++k) {
+    const std::size_t which = rng() % models.size();
+    const Eigen::Vector3d rotate(0, which == 0 ? 90.0 : 0.0, 0);
+    const TopoDS_Face face = geometry::PlaceFace(models[which].Face(1), rotate, {0, 0, 0});
+    const FaceSurface surface(face, files[which]);
+    StrategySpec spec;
+    spec.kind = static_cast<StrategySpec::Kind>(rng() % 3);
+    const double angle = uni(rng) * std::numbers::pi;
+    spec.plane_normal = Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
+    spec.direction = Eigen::Vector3d(-std::sin(angle), std::cos(angle), 0.0);
+    spec.along_u = rng() % 2 == 0;
+    spec.mode = rng() % 2 ? StrategySpec::PathMode::kZigzag : StrategySpec::PathMode::kForward;
+    spec.stepover_mm = 2.0 + 6.0 * uni(rng);
+    spec.max_passes = 2;
+    const Tool tool = Ball(0.5 + 3.0 * uni(rng));
+    strategies::PassList passes;
+    try {
+      passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+    } catch (const Error& e) {
+      // Refusals must say where (undercuts and gouges are real on these faces).
+      EXPECT_NE(std::string(e.what()).find("(u, v)"), std::string::npos) << e.what();
+      continue;
+    }
+    ++built;
+    for (const auto& pass : passes.passes) {
+      PathState st = pass->Start();
+      const double length = *pass->Length();
+      const double step = 0.05 + 0.5 * uni(rng);
+      for (double s = step;; s += step) {
+        const PathSample smp = pass->At(st, std::min(s, length));
+        ASSERT_EQ(smp.status, PathStatus::kOk) << pass->Describe(st);
+        strategies::ContactPoint c;
+        ASSERT_EQ(pass->Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+        ASSERT_LE(std::abs(c.g), 1e-6) << pass->Describe(smp.state);
+        ASSERT_LT((c.tip - smp.pose.tip).norm(), 1e-12);
+        st = smp.state;
+        if (s >= length) break;
+      }
+      EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-9);
+    }
+  }
+  EXPECT_GT(built, 0);
+}
+
+}  // namespace
+}  // namespace dtis
