@@ -198,7 +198,9 @@ TEST(SurfacePass, IsoLinesKeepTheirParameterAndArcLengthIsTheTipPath) {
     st = smp.state;
   }
   EXPECT_NEAR(chords, length, 1e-4 * length);
-  EXPECT_LT((last - pass.EndPose().tip).norm(), 1e-9);
+  // The march and the builder's trace sum their arcs over different steps: they end together to
+  // the arc model's error (fifth order in the 0.1 mm trace step), well below 1e-6 mm.
+  EXPECT_LT((last - pass.EndPose().tip).norm(), 1e-6);
 }
 
 TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
@@ -356,7 +358,7 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
         st = smp.state;
         if (s >= length) break;
       }
-      EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-9);
+      EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
     }
   }
   EXPECT_GT(built, 0);

@@ -104,43 +104,38 @@ std::string LinePath::Describe(const PathState& state) const {
   return fmt::format("arc length {} mm on the line", state.s);
 }
 
-std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to,
-                                                   double safe_z) {
-  constexpr double kMinAxisZ = 0.05;
-  for (const Pose* p : {&from, &to}) {
-    if (p->axis.z() < kMinAxisZ) {
-      throw Error(
-          "link move: the tool axis ({:.6g}, {:.6g}, {:.6g}) does not point up enough to "
-          "retract along it",
-          p->axis.x(), p->axis.y(), p->axis.z());
-    }
-  }
-  const auto above = [safe_z](const Pose& p) -> Eigen::Vector3d {
-    const double d = std::max(0.0, (safe_z - p.tip.z()) / p.axis.z());
-    return p.tip + p.axis * d;
-  };
-  const Eigen::Vector3d r1 = above(from), r2 = above(to);
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
+                                                   double clearance) {
+  const Eigen::Vector3d out1 = from.tip + from.axis * clearance;
+  const Eigen::Vector3d out2 = to.tip + to.axis * clearance;
+  const Eigen::Vector3d up1(out1.x(), out1.y(), std::max(safe_z, out1.z()));
+  const Eigen::Vector3d up2(out2.x(), out2.y(), std::max(safe_z, out2.z()));
   constexpr double kMinMm = 1e-9;
   std::vector<std::unique_ptr<PathSource>> moves;
-  if ((r1 - from.tip).norm() > kMinMm) {
-    moves.push_back(std::make_unique<LinePath>(from.tip, r1, from.axis));
-  }
-  if ((r2 - r1).norm() > kMinMm) {
-    if ((to.axis - from.axis).norm() < 1e-12) {
-      moves.push_back(std::make_unique<LinePath>(r1, r2, from.axis));
-    } else {
-      // The tool axis turns linearly in its top point, 100 mm up the axis.
-      constexpr double kLeverMm = 100.0;
-      BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {r1, r2}, {}};
-      BSplineCurveData top{
-          1, {0.0, 0.0, 1.0, 1.0}, {r1 + from.axis * kLeverMm, r2 + to.axis * kLeverMm}, {}};
-      moves.push_back(std::make_unique<CurvePath>(BSplineCurve(std::move(bottom), "link"),
-                                                  BSplineCurve(std::move(top), "link")));
+  const auto line = [&moves](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                             const Eigen::Vector3d& axis) {
+    if ((b - a).norm() > kMinMm) moves.push_back(std::make_unique<LinePath>(a, b, axis));
+  };
+  line(from.tip, out1, from.axis);
+  line(out1, up1, from.axis);
+  if ((to.axis - from.axis).norm() < 1e-12) {
+    line(up1, up2, from.axis);
+  } else {
+    if ((up2 - up1).norm() <= kMinMm) {
+      throw Error(
+          "link move: the tool axis must turn where the tool does not move; raise the "
+          "clearance");
     }
+    // The tool axis turns linearly in its top point, 100 mm up the axis.
+    constexpr double kLeverMm = 100.0;
+    BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {up1, up2}, {}};
+    BSplineCurveData top{
+        1, {0.0, 0.0, 1.0, 1.0}, {up1 + from.axis * kLeverMm, up2 + to.axis * kLeverMm}, {}};
+    moves.push_back(std::make_unique<CurvePath>(BSplineCurve(std::move(bottom), "link"),
+                                                BSplineCurve(std::move(top), "link")));
   }
-  if ((to.tip - r2).norm() > kMinMm) {
-    moves.push_back(std::make_unique<LinePath>(r2, to.tip, to.axis));
-  }
+  line(up2, out2, to.axis);
+  line(out2, to.tip, to.axis);
   return moves;
 }
 

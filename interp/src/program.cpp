@@ -20,11 +20,7 @@ class VectorSink final : public SetpointSink {
   std::vector<Setpoint> rows;
 };
 
-struct Planned {
-  std::vector<Setpoint> rows;
-  VpopSummary summary;
-  std::exception_ptr error;
-};
+using Planned = PlannedSegment;
 
 void PlanOne(const ProgramSegment& seg, const Machine& machine, const VpopOptions& options,
              Planned* out) {
@@ -48,8 +44,7 @@ bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpo
   const AxisVector& first = rows->front().q;
   for (int i = 0; i < machine.AxisCount(); ++i) {
     const double d = previous[i] - first[i];
-    // A path ends within end_tolerance_mm of its end: well below this.
-    const double scale = 1e-6;
+    const double scale = 1e-9 * (1.0 + std::abs(previous[i]));
     if (std::abs(d) <= scale) continue;
     if (!axes[static_cast<std::size_t>(i)].continuous) return false;
     const double turns = std::round(d / (2.0 * std::numbers::pi));
@@ -63,25 +58,34 @@ bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpo
 
 }  // namespace
 
-ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Machine& machine,
-                          const ProgramOptions& options) {
+std::vector<PlannedSegment> PlanSegments(const std::vector<ProgramSegment>& segments,
+                                         const Machine& machine, const ProgramOptions& options) {
   const int n = static_cast<int>(segments.size());
   std::vector<Planned> planned(segments.size());
   std::atomic<int> done{0};
-  {
-    std::unique_ptr<oneapi::tbb::global_control> limit;
-    if (options.threads > 0) {
-      limit = std::make_unique<oneapi::tbb::global_control>(
-          oneapi::tbb::global_control::max_allowed_parallelism,
-          static_cast<std::size_t>(options.threads));
-    }
-    oneapi::tbb::parallel_for(0, n, [&](int k) {
-      const auto i = static_cast<std::size_t>(k);
-      PlanOne(segments[i], machine, segments[i].options, &planned[i]);
-      const int d = ++done;
-      if (options.progress) options.progress(d, n);
-    });
+  std::unique_ptr<oneapi::tbb::global_control> limit;
+  if (options.threads > 0) {
+    limit = std::make_unique<oneapi::tbb::global_control>(
+        oneapi::tbb::global_control::max_allowed_parallelism,
+        static_cast<std::size_t>(options.threads));
   }
+  oneapi::tbb::parallel_for(0, n, [&](int k) {
+    const auto i = static_cast<std::size_t>(k);
+    PlanOne(segments[i], machine, segments[i].options, &planned[i]);
+    const int d = ++done;
+    if (options.progress) options.progress(d, n);
+  });
+  return planned;
+}
+
+ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Machine& machine,
+                          const ProgramOptions& options) {
+  return Stitch(segments, PlanSegments(segments, machine, options), machine);
+}
+
+ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
+                     std::vector<PlannedSegment> planned, const Machine& machine) {
+  const int n = static_cast<int>(segments.size());
   ProgramResult result;
   for (int k = 0; k < n; ++k) {
     const auto i = static_cast<std::size_t>(k);
@@ -95,10 +99,13 @@ ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Mac
         PlanOne(segments[i], machine, o, &planned[i]);
         if (planned[i].error) std::rethrow_exception(planned[i].error);
         if (!Align(machine, previous, &planned[i].rows)) {
+          const AxisVector gap = planned[i].rows.front().q - previous;
+          Eigen::Index axis = 0;
+          gap.cwiseAbs().maxCoeff(&axis);
           throw Error(
-              "{}: starts at other axis positions than where the previous segment ended "
-              "(the path is not continuous there)",
-              segments[i].name);
+              "{}: starts at other axis positions than where the previous segment ended (axis {} "
+              "differs by {:.3g}): the path is not continuous there",
+              segments[i].name, machine.Axes()[static_cast<std::size_t>(axis)].name, gap[axis]);
         }
       }
     }

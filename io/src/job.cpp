@@ -276,41 +276,71 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   const strategies::PassList passes =
       strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
   const double safe_z = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
-  std::vector<std::unique_ptr<PathSource>> links;
-  std::vector<interp::ProgramSegment> segments;
   interp::VpopOptions link_options = job.vpop;
   if (spec.link_feed_mm_s > 0.0) link_options.feed_mm_s = spec.link_feed_mm_s;
-  std::vector<bool> is_pass;
-  for (std::size_t k = 0; k < passes.passes.size(); ++k) {
-    const strategies::SurfacePass& pass = *passes.passes[k];
-    segments.push_back({&pass, job.vpop, fmt::format("pass {}", pass.Index())});
-    is_pass.push_back(true);
-    r->path_length_mm += *pass.Length();
-    if (k + 1 == passes.passes.size()) break;
-    const auto& next = *passes.passes[k + 1];
-    std::vector<std::unique_ptr<PathSource>> moves;
-    try {
-      moves = geometry::LinkMoves(pass.EndPose(), next.StartPose(), safe_z);
-    } catch (const Error& e) {
-      throw Error("{}: linking pass {} to pass {}: {}", job.file, pass.Index(), next.Index(),
-                  e.what());
-    }
-    for (auto& m : moves) {
-      segments.push_back({m.get(), link_options,
-                          fmt::format("link from pass {} to pass {}", pass.Index(), next.Index())});
-      is_pass.push_back(false);
-      links.push_back(std::move(m));
-    }
-  }
-  r->passes = static_cast<int>(passes.passes.size());
-  r->links = static_cast<int>(links.size());
+  const int n = static_cast<int>(passes.passes.size());
+  r->passes = n;
   r->stepover_mm = passes.stepover_mm;
+  std::vector<interp::ProgramSegment> pass_segments;
+  for (const auto& pass : passes.passes) {
+    pass_segments.push_back({pass.get(), job.vpop, fmt::format("pass {}", pass->Index())});
+    r->path_length_mm += *pass->Length();
+  }
+  // The passes first, in parallel; then the links, from where each pass really ended (its last
+  // setpoint) to where the next one starts, so that no position jumps by even a rounding error.
+  const auto progress = [&options](int offset, int total) -> std::function<void(int, int)> {
+    if (!options.progress) return {};
+    return [&options, offset, total](int done, int) { options.progress(offset + done, total); };
+  };
   interp::ProgramOptions po;
   po.threads = options.threads;
-  po.progress = options.progress;
+  po.progress = progress(0, 2 * n - 1);
+  std::vector<interp::PlannedSegment> planned_passes =
+      interp::PlanSegments(pass_segments, *r->machine, po);
+  std::vector<std::unique_ptr<PathSource>> links;
+  std::vector<interp::ProgramSegment> link_segments;
+  std::vector<int> links_after(static_cast<std::size_t>(n), 0);
+  for (int k = 0; k + 1 < n; ++k) {
+    const auto& done = planned_passes[static_cast<std::size_t>(k)];
+    const auto& next = planned_passes[static_cast<std::size_t>(k + 1)];
+    if (done.error || next.error || done.rows.empty() || next.rows.empty()) continue;
+    const Pose from = r->machine->Forward(done.rows.back().q);
+    const Pose to = r->machine->Forward(next.rows.front().q);
+    std::vector<std::unique_ptr<PathSource>> moves;
+    try {
+      moves = geometry::LinkMoves(from, to, safe_z, spec.clearance_mm);
+    } catch (const Error& e) {
+      throw Error("{}: linking pass {} to pass {}: {}", job.file, k + 1, k + 2, e.what());
+    }
+    for (auto& m : moves) {
+      link_segments.push_back(
+          {m.get(), link_options, fmt::format("link from pass {} to pass {}", k + 1, k + 2)});
+      links.push_back(std::move(m));
+      ++links_after[static_cast<std::size_t>(k)];
+    }
+  }
+  r->links = static_cast<int>(links.size());
+  po.progress = progress(n, 2 * n - 1);
+  std::vector<interp::PlannedSegment> planned_links =
+      interp::PlanSegments(link_segments, *r->machine, po);
+  // Interleave: pass 1, its links, pass 2, ...
+  std::vector<interp::ProgramSegment> segments;
+  std::vector<interp::PlannedSegment> planned;
+  std::vector<bool> is_pass;
+  std::size_t l = 0;
+  for (int k = 0; k < n; ++k) {
+    segments.push_back(pass_segments[static_cast<std::size_t>(k)]);
+    planned.push_back(std::move(planned_passes[static_cast<std::size_t>(k)]));
+    is_pass.push_back(true);
+    for (int m = 0; m < links_after[static_cast<std::size_t>(k)]; ++m, ++l) {
+      segments.push_back(link_segments[l]);
+      planned.push_back(std::move(planned_links[l]));
+      is_pass.push_back(false);
+    }
+  }
   interp::ProgramResult program;
   try {
-    program = interp::PlanProgram(segments, *r->machine, po);
+    program = interp::Stitch(segments, std::move(planned), *r->machine);
   } catch (const Error& e) {
     throw Error("{}: {}", job.file, e.what());
   }

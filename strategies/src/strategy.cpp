@@ -10,8 +10,7 @@
 namespace dtis::strategies {
 namespace {
 
-constexpr double kProbeMm = 1e-3;      // step used to tell an entry from an exit
-constexpr double kBoundaryMm = 1e-10;  // pass ends are found to this chord precision
+constexpr double kProbeMm = 1e-3;  // step used to tell an entry from an exit
 
 struct Candidate {
   int line = 0;
@@ -127,19 +126,25 @@ class Builder {
       // The face's extent along the normal, from a grid of (tip or contact) points.
       lo_ = INFINITY, hi_ = -INFINITY;
       ContactPoint c;
+      EvalStatus why = EvalStatus::kOk;
       for (int i = 0; i <= 40; ++i) {
         for (int j = 0; j <= 40; ++j) {
           const Eigen::Vector2d uv(face_.U0() + (face_.U1() - face_.U0()) * i / 40.0,
                                    face_.V0() + (face_.V1() - face_.V0()) * j / 40.0);
           if (!face_.Inside(uv.x(), uv.y())) continue;
           PassConstraint probe = base;
-          if (EvaluateOriented(&probe, spec_.direction, uv, &c) != EvalStatus::kOk) continue;
+          const EvalStatus st = EvaluateOriented(&probe, spec_.direction, uv, &c);
+          if (st != EvalStatus::kOk) {
+            why = st;
+            continue;
+          }
           lo_ = std::min(lo_, c.g);
           hi_ = std::max(hi_, c.g);
         }
       }
       if (!(lo_ <= hi_)) {
-        throw Error("{}: no point of the face evaluates (degenerate surface?)", face_.Where());
+        throw Error("{}: no point of the face gives a cutter location: {}", face_.Where(),
+                    EvalStatusText(why));
       }
     } else {
       base.kind = spec_.along_u ? PassConstraint::Kind::kIsoV : PassConstraint::Kind::kIsoU;
@@ -196,59 +201,51 @@ class Builder {
   }
 
   // Roots of the line on the face's boundary, each traced if the pass enters the face there.
+  // For plane strategies both orientations of the feed are tried (with a tilted tool they are
+  // different passes): each crossing of the face is traced from the root where its travel enters
+  // the face, and kept if it goes along the strategy's direction.
   void FindPasses(int line, const PassConstraint& constraint, std::vector<Candidate>* out) const {
-    const Eigen::Vector3d direction = Direction(constraint);
-    PassConstraint scan = constraint;
-    scan.feed_sign = 1;
-    for (const auto& loop : face_.Boundary(64)) {
-      ContactPoint a, b;
-      EvalStatus sa = EvalStatus::kStalled;
-      for (std::size_t i = 0; i < loop.size(); ++i) {
-        PassConstraint cb = scan;
-        const EvalStatus sb =
-            IsPlane()
-                ? EvaluateOriented(&cb, direction, loop[i], &b)
-                : PassEvaluator(face_, tool_, orientation_, side_, scan).Evaluate(loop[i], &b);
-        if (sb == EvalStatus::kDegenerateNormal) {
-          Fail(line, constraint, 0.0, loop[i],
-               fmt::format("{}; passes end on this boundary", EvalStatusText(sb)));
+    const std::vector<int> signs =
+        IsPlane() ? std::vector<int>{1, -1} : std::vector<int>{constraint.feed_sign};
+    for (const int sign : signs) {
+      PassConstraint c = constraint;
+      c.feed_sign = sign;
+      const PassEvaluator e(face_, tool_, orientation_, side_, c);
+      for (const auto& loop : face_.Boundary(64)) {
+        ContactPoint a, b;
+        EvalStatus sa = EvalStatus::kStalled;
+        for (std::size_t i = 0; i < loop.size(); ++i) {
+          const EvalStatus sb = e.Evaluate(loop[i], &b);
+          if (sb == EvalStatus::kDegenerateNormal) {
+            Fail(line, c, 0.0, loop[i],
+                 fmt::format("{}; passes end on this boundary", EvalStatusText(sb)));
+          }
+          if (i > 0 && sa == EvalStatus::kOk && sb == EvalStatus::kOk &&
+              ((a.g <= 0.0 && b.g > 0.0) || (a.g > 0.0 && b.g <= 0.0))) {
+            Root(line, constraint, e, loop[i - 1], a.g, loop[i], out);
+          }
+          a = b;
+          sa = sb;
         }
-        if (i > 0 && sa == EvalStatus::kOk && sb == EvalStatus::kOk &&
-            ((a.g <= 0.0 && b.g > 0.0) || (a.g > 0.0 && b.g <= 0.0))) {
-          Root(line, constraint, loop[i - 1], a.g, loop[i], b.g, out);
-        }
-        a = b;
-        sa = sb;
       }
     }
   }
 
-  void Root(int line, const PassConstraint& constraint, Eigen::Vector2d a, double ga,
-            Eigen::Vector2d b, double gb, std::vector<Candidate>* out) const {
+  void Root(int line, const PassConstraint& constraint, const PassEvaluator& e, Eigen::Vector2d a,
+            double ga, Eigen::Vector2d b, std::vector<Candidate>* out) const {
     const Eigen::Vector3d direction = Direction(constraint);
-    PassConstraint c = constraint;
+    const PassConstraint& c = e.Constraint();
     ContactPoint r;
     for (int it = 0; it < 80 && (b - a).norm() > 1e-15 * (1.0 + a.norm()); ++it) {
       const Eigen::Vector2d m = 0.5 * (a + b);
-      c.feed_sign = constraint.feed_sign;
-      if (IsPlane()) c.feed_sign = 1;
-      if ((IsPlane() ? EvaluateOriented(&c, direction, m, &r)
-                     : PassEvaluator(face_, tool_, orientation_, side_, c).Evaluate(m, &r)) !=
-          EvalStatus::kOk) {
-        return;
-      }
+      if (e.Evaluate(m, &r) != EvalStatus::kOk) return;
       if ((r.g <= 0.0) == (ga <= 0.0)) {
         a = m, ga = r.g;
       } else {
-        b = m, gb = r.g;
+        b = m;
       }
     }
-    if (IsPlane()) c.feed_sign = 1;
-    const EvalStatus st = IsPlane()
-                              ? EvaluateOriented(&c, direction, a, &r)
-                              : PassEvaluator(face_, tool_, orientation_, side_, c).Evaluate(a, &r);
-    if (st != EvalStatus::kOk) return;
-    const PassEvaluator e(face_, tool_, orientation_, side_, c);
+    if (e.Evaluate(a, &r) != EvalStatus::kOk) return;
     const NewtonOptions& o = spec_.newton;
     EvalStatus status;
     ContactPoint fwd, back;
@@ -281,8 +278,8 @@ class Builder {
     cand.start = start;
     Trace(e, &cand);
     cand.order = start.tip.dot(direction);
-    // Both ends of a crossing are entries for opposite feed signs: keep the one that travels
-    // along the strategy's direction.
+    // Each crossing is traced from both ends (one per feed orientation): keep the one that
+    // travels along the strategy's direction.
     // Iso lines travel towards increasing (or, reversed, decreasing) parameter: no choice here.
     const double along = IsPlane() ? (cand.end.tip - cand.start.tip).dot(direction) : 1.0;
     if (along < 0.0) return;
@@ -307,21 +304,7 @@ class Builder {
   // point `chord_out` mm away that is outside.
   ContactPoint Bisect(const PassEvaluator& e, const ContactPoint& inside, double sign,
                       double chord_out) const {
-    double lo = 0.0, hi = chord_out;
-    ContactPoint best = inside, p;
-    EvalStatus status;
-    while (hi - lo > kBoundaryMm) {
-      const double mid = 0.5 * (lo + hi);
-      const Eigen::Vector2d guess = inside.uv + inside.duv * (sign * mid);
-      if (e.SolveChord(inside.tip, mid, guess, spec_.newton, &p, &status) >= 0 &&
-          (p.tip - inside.tip).dot(inside.tangent) * sign > 0.0 && e.Inside(p.uv)) {
-        lo = mid;
-        best = p;
-      } else {
-        hi = mid;
-      }
-    }
-    return best;
+    return e.LastInside(inside, sign, chord_out, spec_.newton);
   }
 
   void Trace(const PassEvaluator& e, Candidate* cand) const {

@@ -170,21 +170,64 @@ int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen
   }
 }
 
+int PassEvaluator::SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
+                            const NewtonOptions& options, ContactPoint* out,
+                            EvalStatus* status) const {
+  // F1 = g, F2 = arc(from, uv) - |delta|, with the arc from the chord and the two tangents. The
+  // Jacobian of F2 is the chord's scaled by arc / chord: it leaves out how the tangents' angle
+  // moves, a relative term of order theta^2 / 12, so the iteration still converges at once.
+  const double target = std::abs(delta);
+  const double limit = std::max(4.0 * target, options.max_step_mm);
+  for (int it = 0;; ++it) {
+    *status = Evaluate(uv, out);
+    if (*status != EvalStatus::kOk) return -1;
+    const Eigen::Vector3d d = out->tip - from.tip;
+    const double dist = d.norm();
+    const double arc = ArcFromChord(dist, from.tangent, out->tangent);
+    const double f1 = out->g, f2 = arc - target;
+    if (std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= options.arc_tolerance_mm) {
+      return it;
+    }
+    if (it == options.max_iterations || !(dist > 0.0)) return -1;
+    Eigen::Matrix2d j;
+    j.row(0) = out->dg.transpose();
+    j.row(1) = (d.transpose() * out->dtip) * (arc / (dist * dist));
+    const double det = j.determinant();
+    if (!(std::abs(det) > 1e-300)) return -1;
+    Eigen::Vector2d step = -j.inverse() * Eigen::Vector2d(f1, f2);
+    const double move = (out->dtip * step).norm();
+    if (move > limit) step *= limit / move;
+    uv += step;
+  }
+}
+
 bool PassEvaluator::Step(const ContactPoint& from, double delta, const NewtonOptions& options,
                          ContactPoint* to, EvalStatus* status, int* iterations) const {
-  const double target = std::abs(delta);
-  int its = SolveChord(from.tip, target, from.uv + from.duv * delta, options, to, status);
+  const int its = SolveArc(from, delta, from.uv + from.duv * delta, options, to, status);
   if (its < 0) return false;
   *iterations += its;
-  const double arc = ArcFromChord(target, from.tangent, to->tangent);
-  if (std::abs(arc - target) > options.tolerance_mm) {
-    const Eigen::Vector2d first = to->uv;
-    its = SolveChord(from.tip, target * target / arc, first, options, to, status);
-    if (its < 0) return false;
-    *iterations += its;
-  }
-  // The chord sphere is cut by the pass twice: make sure the solve took the requested side.
+  // The arc sphere is cut by the pass twice: make sure the solve took the requested side.
   return (to->tip - from.tip).dot(from.tangent) * delta > 0.0;
+}
+
+ContactPoint PassEvaluator::LastInside(const ContactPoint& inside, double sign, double chord_out,
+                                       const NewtonOptions& options) const {
+  constexpr double kBoundaryMm = 1e-10;
+  double lo = 0.0, hi = chord_out;
+  ContactPoint best = inside, p;
+  EvalStatus status;
+  while (hi - lo > kBoundaryMm) {
+    const double mid = 0.5 * (lo + hi);
+    const Eigen::Vector2d guess = inside.uv + inside.duv * (sign * mid);
+    if (SolveChord(inside.tip, mid, guess, options, &p, &status) >= 0 &&
+        (p.tip - inside.tip).dot(inside.tangent) * sign > 0.0 && Inside(p.uv)) {
+      lo = mid;
+      best = p;
+    } else {
+      hi = mid;
+    }
+  }
+  return best;
 }
 
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb) {
@@ -232,32 +275,26 @@ const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
   return cache_[0];
 }
 
-PathSample SurfacePass::EndSample(double s) const {
-  PathSample out;
-  out.status = s > length_ ? PathStatus::kEnd : PathStatus::kOk;
-  out.state.s = std::min(s, length_);
-  out.state.u = end_.uv.x();
-  out.state.v = end_.uv.y();
-  out.pose = {end_.tip, end_.axis};
-  return out;
-}
-
 PathSample SurfacePass::At(const PathState& from, double s) const {
-  if (s >= length_) return EndSample(s);
   PathSample out;
   if (s <= 0.0) {
     out.state = Start();
     out.pose = StartPose();
     return out;
   }
+  // Past the end: the pose at the end, reached by marching like any other (so that it agrees with
+  // the poses before it to the arc tolerance, not just to the trace's).
+  const double target = std::min(s, length_);
+  if (s > length_) out.status = PathStatus::kEnd;
   int from_slot = 0;
   ContactPoint cur = From(from, &from_slot);
   double cur_s = from.s;
-  // The marched arc length and the traced length differ by the arc estimates' error (below 1e-6
-  // mm per pass); within this distance of an end, the boundary is that end.
+  // The march and the builder's trace sum their arcs over different steps: they agree to far
+  // better than this. Within it of an end, the face's boundary is that end.
   constexpr double kSnapMm = 1e-4;
-  while (s != cur_s) {
-    const double delta = std::clamp(s - cur_s, -options_.max_step_mm, options_.max_step_mm);
+  bool stalled = false;
+  while (target != cur_s && !stalled) {
+    const double delta = std::clamp(target - cur_s, -options_.max_step_mm, options_.max_step_mm);
     ContactPoint next;
     EvalStatus status = EvalStatus::kOk;
     if (!eval_.Step(cur, delta, options_, &next, &status, &out.iterations)) {
@@ -267,23 +304,20 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
     }
     // The pass is what the builder traced from its start to its end. Only near those ends does
     // the face's boundary matter here: a pass that skims the boundary between them (closer than
-    // the trace's step could see) is followed on the surface's natural extension.
-    if (!eval_.Inside(next.uv)) {
-      if (delta > 0.0 && s >= length_ - kSnapMm) return EndSample(s);
-      if (delta < 0.0 && s <= kSnapMm) {
-        out.state = Start();
-        out.state.s = s;
-        out.pose = StartPose();
-        return out;
-      }
+    // the trace's step could see) is followed on the surface's natural extension. At an end, the
+    // pose stays on the boundary point this march meets.
+    if (!eval_.Inside(next.uv) &&
+        ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm))) {
+      next = eval_.LastInside(cur, delta > 0.0 ? 1.0 : -1.0, (next.tip - cur.tip).norm(), options_);
+      stalled = true;
     }
     cur = next;
     cur_s += delta;
-    if (std::abs(s - cur_s) < 1e-12 * (1.0 + std::abs(s))) cur_s = s;
+    if (std::abs(target - cur_s) < 1e-12 * (1.0 + std::abs(target))) cur_s = target;
   }
   cache_[1 - from_slot] = cur;
   cache_valid_[1 - from_slot] = true;
-  out.state.s = s;
+  out.state.s = target;
   out.state.u = cur.uv.x();
   out.state.v = cur.uv.y();
   out.pose = {cur.tip, cur.axis};

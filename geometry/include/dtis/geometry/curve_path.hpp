@@ -57,11 +57,11 @@ class LinePath final : public PathSource {
   double length_;
 };
 
-// Moves that link two poses through a safe height: retract along the first tool axis until the
-// tip reaches z = safe_z, traverse to above the second pose (the tool axis turning with a 5-axis
-// line pair when the two axes differ), plunge along the second axis. Moves of zero length are
-// left out. Throws dtis::Error if a tool axis points down or sideways (|a_z| < 0.05).
-std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z);
+// Moves that link two poses: back off along the first tool axis by `clearance`, rise to z =
+// safe_z, traverse (the tool axis turning with a 5-axis line pair when the two axes differ), come
+// down above the second pose and approach it along its axis. Moves of zero length are left out.
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
+                                                   double clearance);
 
 // The distinct knots of a curve inside its domain, ends included.
 std::vector<double> DistinctKnots(const BSplineCurve& curve);

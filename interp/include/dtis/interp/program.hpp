@@ -5,7 +5,9 @@
 // number of threads.
 #pragma once
 
+#include <exception>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "dtis/core/machine.hpp"
@@ -37,5 +39,17 @@ struct ProgramOptions {
 // previous one ended (which would be a position jump).
 ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Machine& machine,
                           const ProgramOptions& options = {});
+
+// The two halves of PlanProgram, for programs whose later segments depend on where earlier ones
+// really ended (a surface job's links start at the last setpoint of a pass).
+struct PlannedSegment {
+  std::vector<Setpoint> rows;
+  VpopSummary summary;
+  std::exception_ptr error;  // a dtis::Error naming the segment, rethrown by Stitch
+};
+std::vector<PlannedSegment> PlanSegments(const std::vector<ProgramSegment>& segments,
+                                         const Machine& machine, const ProgramOptions& options);
+ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
+                     std::vector<PlannedSegment> planned, const Machine& machine);
 
 }  // namespace dtis::interp

@@ -43,7 +43,7 @@ struct StrategySpec {
   int max_passes = 0;  // 0: all
   Side side = Side::kAuto;
   NewtonOptions newton;
-  double trace_step_mm = 0.25;  // step of the one tracing walk that finds each pass's end
+  double trace_step_mm = 0.1;  // step of the one tracing walk that finds each pass's end
 
   static const char* KindName(Kind kind);
 };

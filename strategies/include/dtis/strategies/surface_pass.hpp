@@ -4,9 +4,10 @@
 // zero: the tool tip in a plane (plane_cl), the contact point in a plane (plane_cc), or an
 // iso-parametric line (uv). Its arc length s is that of the tool tip. For a trial arc length the
 // pose comes from a Newton solve on the exact surface, warm-started from the given state:
-//     g(u, v) = 0  and  |tip(u, v) - tip(state)| = c,
-// where the chord c is corrected once so that the arc between the two states (from the angle of
-// their tangents) is the requested step. The Jacobian is exact: the normal, feed direction, tool
+//     g(u, v) = 0  and  arc(tip(state), tip(u, v)) = s' - s,
+// where the chord c is such that the arc between the two states (from the chord and the angle of
+// their tangents) is the requested step, to 1e-10 mm, so that the arc length of a pose does not
+// depend on the steps that reached it. The Jacobian is exact: the normal, feed direction, tool
 // axis and tip are computed with forward-mode derivatives (ceres::Jet) from the surface's second
 // derivatives. Nothing is tabulated: a pass holds its start, its end and its length, found by the
 // builder when it traced the pass once.
@@ -45,6 +46,9 @@ struct NewtonOptions {
   double tolerance_mm = 1e-6;  // |g| and the chord residual, mm (the paper's 0.001 um)
   int max_iterations = 12;
   double max_step_mm = 0.5;  // longer moves are split into steps of at most this length
+  // Each step's arc length is met to this: arc lengths summed over steps of any size then agree,
+  // so the pose at an arc length does not depend on the state it was reached from.
+  double arc_tolerance_mm = 1e-10;
 };
 
 enum class EvalStatus { kOk, kDegenerateNormal, kFeedUndefined, kFlatContact, kStalled };
@@ -75,12 +79,19 @@ class PassEvaluator {
   // iterations (updates) spent, or -1 if it did not converge; `status` says why it stopped.
   int SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
                  const NewtonOptions& options, ContactPoint* out, EvalStatus* status) const;
-  // One step of `delta` mm of tip arc length along the pass (backwards if negative) from `from`:
-  // a chord solve from the tangent predictor, then one correction of the chord so that the arc
-  // estimate is |delta|. Returns false (with `status`, kOk meaning no convergence) on failure.
+  // Newton: the point with g = 0 whose tip is |delta| mm of arc from `from`'s (arc from the chord
+  // and the tangents, ArcFromChord), from `uv`. Iterations spent, or -1.
+  int SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
+               const NewtonOptions& options, ContactPoint* out, EvalStatus* status) const;
+  // One step of `delta` mm of tip arc length along the pass (backwards if negative) from `from`,
+  // from the tangent predictor. Returns false (with `status`, kOk meaning no convergence).
   bool Step(const ContactPoint& from, double delta, const NewtonOptions& options, ContactPoint* to,
             EvalStatus* status, int* iterations) const;
   bool Inside(const Eigen::Vector2d& uv) const { return face_.Inside(uv.x(), uv.y()); }
+  // The last point of the face's domain on the way from `inside` (sign +1: along the travel)
+  // towards the point `chord_out` mm away, known to be outside; bisection on the chord to 1e-10 mm.
+  ContactPoint LastInside(const ContactPoint& inside, double sign, double chord_out,
+                          const NewtonOptions& options) const;
 
   const geometry::FaceSurface& Face() const { return face_; }
   const geometry::Tool& Tool() const { return tool_; }
@@ -120,7 +131,6 @@ class SurfacePass final : public PathSource {
 
  private:
   const ContactPoint& From(const PathState& state, int* slot) const;
-  PathSample EndSample(double s) const;
 
   PassEvaluator eval_;
   int index_;
