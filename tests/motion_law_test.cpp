@@ -71,3 +71,32 @@ TEST(MotionLaw, CapIsApproachedWithoutOvershoot) {
 
 }  // namespace
 }  // namespace dtis::interp
+
+namespace dtis::interp {
+namespace {
+
+// The closed-form phases give the simulation's distance, period count and verdict, including for
+// laws whose stops take tens of thousands of periods (small path jerk near a rotary singularity).
+TEST(MotionLaw, StopDistanceSumsPhasesLikeTheSimulation) {
+  std::mt19937_64 rng(test::g_seed + 11);
+  std::uniform_real_distribution<double> frac(0.0, 1.0);
+  const double dt = 1e-3;
+  double worst = 0.0;
+  for (long c = 0; c < test::g_count * 2; ++c) {
+    const double J = std::pow(10.0, 1.0 + 4.0 * frac(rng)),
+                 A = std::pow(10.0, 0.5 + 3.5 * frac(rng));
+    const double v0 = frac(rng) * 200.0, a0 = (frac(rng) * 1.4 - 1.0) * A;
+    const StopDistance sim = StopDistanceBySimulation(v0, a0, J, A, dt);
+    const StopDistance fast = StopDistanceFrom(v0, a0, J, A, dt);
+    ASSERT_EQ(fast.reverses, sim.reverses) << "case " << c << " v " << v0 << " a " << a0;
+    if (!std::isfinite(sim.distance)) continue;
+    ASSERT_NEAR(fast.periods, sim.periods, 1) << "case " << c;
+    const double err = std::abs(fast.distance - sim.distance) / (1.0 + sim.distance);
+    worst = std::max(worst, err);
+    ASSERT_LT(err, 1e-11) << "case " << c << " v " << v0 << " a " << a0 << " J " << J << " A " << A;
+  }
+  std::printf("stop distance: worst relative difference to the simulation %.3g\n", worst);
+}
+
+}  // namespace
+}  // namespace dtis::interp

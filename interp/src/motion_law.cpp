@@ -34,7 +34,8 @@ double StopAcceleration(double v, double a, double jerk, double acceleration, do
   return std::min(next, a + jerk * dt);
 }
 
-StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt) {
+StopDistance StopDistanceBySimulation(double v, double a, double jerk, double acceleration,
+                                      double dt) {
   double distance = 0.0;
   int periods = 0;
   const double tiny = 1e-12 * (1.0 + std::abs(v));
@@ -49,6 +50,125 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
     distance += v_next * dt;
     v = v_next;
     a = next;
+    if (++periods > 200000) return {std::numeric_limits<double>::infinity(), periods};
+  }
+  return {distance, periods};
+}
+
+namespace {
+
+// The largest k in [1, hi] for which holds(k), given holds(1) and that holds is true then false.
+template <typename Holds>
+long LastTrue(long hi, const Holds& holds) {
+  long lo = 1;
+  while (lo < hi) {
+    const long mid = lo + (hi - lo + 1) / 2;
+    if (holds(mid)) {
+      lo = mid;
+    } else {
+      hi = mid - 1;
+    }
+  }
+  return lo;
+}
+
+// Below this many periods a phase is stepped, not summed.
+constexpr long kMinJump = 8;
+
+}  // namespace
+
+// StopDistanceBySimulation, with the long phases summed in closed form instead of stepped: the
+// ramp (a falls by jerk dt per period), the hold at -acceleration, and the release, which follows
+// its own plan (accelerations -b, -b + j dt, ... as MaxAccelerationUnderCap planned them) because
+// that plan re-aims to itself period after period. Each phase's length is found by bisection on
+// the law's own choice, so the result is the simulation's up to rounding.
+StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt) {
+  double distance = 0.0;
+  int periods = 0;
+  const double tiny = 1e-12 * (1.0 + std::abs(v));
+  const double step = jerk * dt;
+  const double release_jerk = jerk * kReleaseJerkFraction;
+  const auto release = [&](double speed) {
+    return -MaxAccelerationUnderCap(0.0, std::max(speed, 0.0), release_jerk, dt);
+  };
+  while (v != 0.0 || a != 0.0) {
+    const double next = StopAcceleration(v, a, jerk, acceleration, dt);
+    if (next == a - step && next > -acceleration) {
+      // Ramp: a_m = a - m step, v_m = v + dt (m a - step m (m + 1) / 2).
+      const auto a_at = [&](long m) { return a - static_cast<double>(m) * step; };
+      const auto v_at = [&](long m) {
+        const double mm = static_cast<double>(m);
+        return v + dt * (mm * a - step * mm * (mm + 1.0) / 2.0);
+      };
+      const auto ramps = [&](long m) {  // period m chooses a_{m-1} - step
+        const double choice = a_at(m);
+        return choice > -acceleration && choice > release(v_at(m - 1)) && v_at(m) > tiny;
+      };
+      const long most = static_cast<long>((a + acceleration) / step);
+      if (most >= kMinJump && ramps(kMinJump)) {
+        const long k = LastTrue(most, ramps);
+        const double kk = static_cast<double>(k);
+        distance +=
+            dt *
+            (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 - step * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
+        v = v_at(k);
+        a = a_at(k);
+        periods += static_cast<int>(k);
+        continue;
+      }
+    } else if (a == -acceleration && next == -acceleration) {
+      // Hold: v_m = v - m A dt.
+      const auto v_at = [&](long m) { return v - static_cast<double>(m) * acceleration * dt; };
+      const auto holds = [&](long m) {
+        return -acceleration >= release(v_at(m - 1)) && v_at(m) > tiny;
+      };
+      const long most = static_cast<long>(v / (acceleration * dt)) + 1;
+      if (most >= kMinJump && holds(kMinJump)) {
+        const long k = LastTrue(most, holds);
+        const double kk = static_cast<double>(k);
+        distance += dt * (kk * v - acceleration * dt * kk * (kk + 1.0) / 2.0);
+        v = v_at(k);
+        periods += static_cast<int>(k);
+        continue;
+      }
+    } else if (next == release(v) && next > a - step && next < a + step) {
+      // Release: a_i = -b + i j dt (i = 0, 1, ...), v_i = v - dt (i b - j dt i (i - 1) / 2).
+      const double b = -next, rstep = release_jerk * dt;
+      const auto v_at = [&](long i) {
+        const double ii = static_cast<double>(i);
+        return v - dt * (ii * b - rstep * ii * (ii - 1.0) / 2.0);
+      };
+      const auto a_at = [&](long i) { return -b + static_cast<double>(i - 1) * rstep; };
+      const auto releases = [&](long i) {  // period i chooses a_i, re-aimed from v_{i-1}
+        const double planned = a_at(i);
+        return std::abs(release(v_at(i - 1)) - planned) <= 1e-9 * (b + rstep) && v_at(i) > tiny;
+      };
+      const long most = static_cast<long>(b / rstep) + 1;
+      if (most >= kMinJump && releases(kMinJump)) {
+        // Leave the last periods to the loop: it settles v and a to exactly zero.
+        const long k = LastTrue(most, releases) - 2;
+        if (k >= kMinJump) {
+          const double kk = static_cast<double>(k);
+          distance += dt * (kk * v - dt * (b * kk * (kk + 1.0) / 2.0 -
+                                           rstep * (kk + 1.0) * kk * (kk - 1.0) / 6.0));
+          v = v_at(k);
+          a = a_at(k);
+          periods += static_cast<int>(k);
+          continue;
+        }
+      }
+    }
+    // One period, as the simulation steps it.
+    double chosen = next;
+    double v_next = v + chosen * dt;
+    if (v_next < -tiny) return {distance, periods, true};
+    if (std::abs(v_next) <= tiny) {
+      v_next = 0.0;
+      chosen = -v / dt;
+    }
+    distance += v_next * dt;
+    v = v_next;
+    a = chosen;
     if (++periods > 200000) return {std::numeric_limits<double>::infinity(), periods};
   }
   return {distance, periods};

@@ -37,5 +37,9 @@ struct StopDistance {
   bool reverses = false;
 };
 StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt);
+// The same by stepping StopAcceleration period by period: the reference StopDistanceFrom is
+// tested against (StopDistanceFrom sums the long phases in closed form).
+StopDistance StopDistanceBySimulation(double v, double a, double jerk, double acceleration,
+                                      double dt);
 
 }  // namespace dtis::interp
