@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <BRep_Tool.hxx>
+#include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <Geom_BSplineCurve.hxx>
 #include <Geom_Surface.hxx>
 #include <cmath>
 #include <numbers>
@@ -11,6 +13,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/occt_convert.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -164,7 +167,7 @@ TEST(SurfacePass, PlaneCcPutsTheContactPointOnThePlane) {
     const PathSample smp = pass.At(st, s);
     ASSERT_EQ(smp.status, PathStatus::kOk);
     strategies::ContactPoint c;
-    ASSERT_EQ(pass.Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+    ASSERT_EQ(pass.Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
     EXPECT_NEAR(c.p.x(), pass.Evaluator().Constraint().value, 1e-6);
     // The contact point is on the exact surface and the tip is one ball radius off it.
     EXPECT_NEAR(DistanceToSurface(m.Face(1), c.p), 0.0, 1e-7);
@@ -230,7 +233,7 @@ TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
       const PathSample smp = pass->At(st, s);
       ASSERT_EQ(smp.status, PathStatus::kOk);
       strategies::ContactPoint c;
-      ASSERT_EQ(pass->Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+      ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
       EXPECT_NEAR(std::acos(std::clamp(c.axis.dot(c.n), -1.0, 1.0)), o.tilt_rad, 1e-9);
       EXPECT_GT(c.feed.dot(c.tangent), 0.0);  // the feed goes along the travel
       EXPECT_NEAR(c.axis.dot(c.feed), std::sin(o.tilt_rad), 1e-9);  // leaning forward along it
@@ -318,7 +321,7 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
   const std::vector<std::string> files = {kTrj8, kStrip};
   std::vector<StepModel> models;
   for (const auto& f : files) models.push_back(StepModel::Load(test::Source(f)));
-  const long cases = std::max<long>(4, test::g_count / 100);
+  const long cases = std::max<long>(4, test::g_count / 20);
   long built = 0;
   for (long k = 0; k < cases; ++k) {
     const std::size_t which = rng() % models.size();
@@ -326,7 +329,20 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
     const TopoDS_Face face = geometry::PlaceFace(models[which].Face(1), rotate, {0, 0, 0});
     const FaceSurface surface(face, files[which]);
     StrategySpec spec;
-    spec.kind = static_cast<StrategySpec::Kind>(rng() % 3);
+    spec.kind = static_cast<StrategySpec::Kind>(rng() % 4);
+    if (spec.kind == StrategySpec::Kind::kLeadingLine) {
+      // A random cubic across the face's box, seen from above.
+      const auto [lo, hi] = geometry::FaceBox(face);
+      geometry::BSplineCurveData g{3, {0, 0, 0, 0, 0.5, 1, 1, 1, 1}, {}, {}};
+      for (int i = 0; i < 5; ++i) {
+        g.poles.emplace_back(lo.x() + (hi.x() - lo.x()) * (i / 4.0),
+                             lo.y() + (hi.y() - lo.y()) * uni(rng), 0.0);
+      }
+      if (uni(rng) < 0.5) {
+        for (auto& p : g.poles) std::swap(p.x(), p.y());
+      }
+      spec.guide = std::make_shared<const geometry::BSplineCurve>(std::move(g));
+    }
     const double angle = uni(rng) * std::numbers::pi;
     spec.plane_normal = Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
     spec.direction = Eigen::Vector3d(-std::sin(angle), std::cos(angle), 0.0);
@@ -350,9 +366,12 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
       const double step = 0.05 + 0.5 * uni(rng);
       for (double s = step;; s += step) {
         const PathSample smp = pass->At(st, std::min(s, length));
-        ASSERT_EQ(smp.status, PathStatus::kOk) << pass->Describe(st);
+        ASSERT_EQ(smp.status, PathStatus::kOk)
+            << pass->Describe(st) << " asked " << s << " of " << length << " start "
+            << pass->Start().u << "," << pass->Start().v << " end "
+            << pass->EndPose().tip.transpose();
         strategies::ContactPoint c;
-        ASSERT_EQ(pass->Evaluate(smp.state.u, smp.state.v, &c), strategies::EvalStatus::kOk);
+        ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
         ASSERT_LE(std::abs(c.g), 1e-6) << pass->Describe(smp.state);
         ASSERT_LT((c.tip - smp.pose.tip).norm(), 1e-12);
         st = smp.state;
@@ -362,6 +381,50 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
     }
   }
   EXPECT_GT(built, 0);
+}
+
+}  // namespace
+}  // namespace dtis
+
+namespace dtis {
+namespace {
+
+// leading_line: every contact point of a pass, seen from above, lies its offset away from the
+// guide curve (distance by OpenCASCADE's projection onto the guide, independent of ours).
+TEST(SurfacePass, LeadingLineKeepsTheContactPointAtItsOffsetFromTheGuide) {
+  const StepModel m = StepModel::Load(test::Source(kTrj8));
+  const TopoDS_Face face = geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0});
+  const FaceSurface surface(face, "trj8");
+  geometry::BSplineCurveData data{
+      3,
+      {0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1},
+      {{-14, 4, 0}, {0, 8, 0}, {15, 1, 0}, {30, 7, 0}, {45, 2, 0}, {58, 7, 0}, {70, 4, 0}},
+      {}};
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kLeadingLine;
+  spec.guide = std::make_shared<const geometry::BSplineCurve>(std::move(data));
+  spec.stepover_mm = 2.5;
+  spec.range = std::array<double, 2>{-2.5, 2.5};
+  const auto passes = strategies::BuildPasses(surface, Ball(3.0), Orientation{}, spec);
+  ASSERT_GE(passes.passes.size(), 3u);
+  const Handle(Geom_BSplineCurve) guide = geometry::ToOcct(*spec.guide);
+  for (const auto& pass : passes.passes) {
+    const double offset = pass->Evaluator().Constraint().value;
+    PathState st = pass->Start();
+    for (double s = 0.0;; s += 0.2) {
+      const PathSample smp = pass->At(st, std::min(s, *pass->Length()));
+      ASSERT_EQ(smp.status, PathStatus::kOk);
+      strategies::ContactPoint c;
+      ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+      GeomAPI_ProjectPointOnCurve proj(gp_Pnt(c.p.x(), c.p.y(), 0.0), guide);
+      ASSERT_GT(proj.NbPoints(), 0);
+      EXPECT_NEAR(proj.LowerDistance(), std::abs(offset), 1e-6) << pass->Describe(smp.state);
+      // The tip is a ball radius off the exact surface.
+      EXPECT_NEAR(DistanceToSurface(face, smp.pose.tip + smp.pose.axis * 3.0), 3.0, 1e-6);
+      st = smp.state;
+      if (s >= *pass->Length()) break;
+    }
+  }
 }
 
 }  // namespace

@@ -113,6 +113,13 @@ bool FaceSurface::Inside(double u, double v) const {
   return state == TopAbs_IN || state == TopAbs_ON;
 }
 
+double FaceSurface::DistanceOutside(double u, double v) const {
+  if (Inside(u, v)) return 0.0;
+  const double cu = std::clamp(u, u0_, u1_), cv = std::clamp(v, v0_, v1_);
+  if (cu == u && cv == v) return INFINITY;
+  return (Point(u, v) - Point(cu, cv)).norm();
+}
+
 std::vector<std::vector<Eigen::Vector2d>> FaceSurface::Boundary(int per_edge) const {
   std::vector<std::vector<Eigen::Vector2d>> loops;
   if (!trimmed_) {

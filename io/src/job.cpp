@@ -102,12 +102,24 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   }
 
   TomlTable st = root.Table("strategy");
-  const auto sk = st.Choice("kind", {"plane_cl", "plane_cc", "uv"});
+  const auto sk = st.Choice("kind", {"plane_cl", "plane_cc", "uv", "leading_line"});
   Spec& s = spec.strategy;
   s.kind = sk == "plane_cl"   ? Spec::Kind::kPlaneCl
            : sk == "plane_cc" ? Spec::Kind::kPlaneCc
-                              : Spec::Kind::kUv;
-  if (s.kind == Spec::Kind::kUv) {
+           : sk == "uv"       ? Spec::Kind::kUv
+                              : Spec::Kind::kLeadingLine;
+  if (s.kind != Spec::Kind::kLeadingLine && st.Has("guide")) {
+    st.Fail("guide", "only used by kind = \"leading_line\"");
+  }
+  if (s.kind == Spec::Kind::kLeadingLine) {
+    for (const char* key : {"plane_normal", "direction", "along"}) {
+      if (st.Has(key)) st.Fail(key, "not used by kind = \"leading_line\" (it follows its guide)");
+    }
+    const std::string guide = ResolveRelative(file, st.String("guide"));
+    CurveFile curve = LoadCurveFile(guide);
+    if (curve.top) st.Fail("guide", "expected a single curve (no [top] curve)");
+    s.guide = std::make_shared<const geometry::BSplineCurve>(std::move(curve.bottom));
+  } else if (s.kind == Spec::Kind::kUv) {
     for (const char* key : {"plane_normal", "direction"}) {
       if (st.Has(key)) st.Fail(key, "only used by the plane strategies");
     }

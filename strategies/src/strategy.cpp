@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "dtis/core/error.hpp"
 
@@ -65,9 +66,8 @@ class Builder {
     for (const Candidate& c : found) {
       if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) break;
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
-      list.passes.push_back(
-          std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, c.start.uv,
-                                        c.end.uv, c.length, spec_.newton));
+      list.passes.push_back(std::make_unique<SurfacePass>(
+          e, static_cast<int>(list.passes.size()) + 1, c.start, c.end, c.length, spec_.newton));
     }
     return list;
   }
@@ -93,7 +93,15 @@ class Builder {
     return up >= 0.0 ? 1 : -1;
   }
 
+  // Plane strategies and leading_line choose the feed's orientation; uv lines have their own.
   bool IsPlane() const { return spec_.kind != StrategySpec::Kind::kUv; }
+  bool IsGuide() const { return spec_.kind == StrategySpec::Kind::kLeadingLine; }
+
+  // How far a pass goes along the strategy's direction of travel (negative: against it).
+  double Along(const Candidate& c, const Eigen::Vector3d& direction) const {
+    if (IsGuide()) return c.end.guide_t - c.start.guide_t;
+    return IsPlane() ? (c.end.tip - c.start.tip).dot(direction) : 1.0;
+  }
 
   // Evaluates with the feed oriented along the line's travel at this point (plane strategies:
   // the sign of unit(n x normal) that goes along `direction`).
@@ -101,7 +109,7 @@ class Builder {
                               const Eigen::Vector2d& uv, ContactPoint* out) const {
     PassEvaluator e(face_, tool_, orientation_, side_, *c);
     EvalStatus st = e.Evaluate(uv, out);
-    if (st == EvalStatus::kOk && IsPlane() && out->feed.dot(direction) < 0.0) {
+    if (st == EvalStatus::kOk && IsPlane() && !IsGuide() && out->feed.dot(direction) < 0.0) {
       c->feed_sign = -c->feed_sign;
       PassEvaluator flipped(face_, tool_, orientation_, side_, *c);
       st = flipped.Evaluate(uv, out);
@@ -110,6 +118,7 @@ class Builder {
   }
 
   std::string ExtentText() const {
+    if (IsGuide()) return fmt::format("[{:.6g}, {:.6g}] mm of offset from the guide", lo_, hi_);
     return IsPlane() ? fmt::format("[{:.6g}, {:.6g}] mm along the plane normal", lo_, hi_)
                      : fmt::format("[{:.6g}, {:.6g}] in {}", lo_, hi_, spec_.along_u ? "v" : "u");
   }
@@ -122,7 +131,9 @@ class Builder {
     double step = stepover;
     if (IsPlane()) {
       base.kind = spec_.kind == StrategySpec::Kind::kPlaneCl ? PassConstraint::Kind::kPlaneCl
+                  : IsGuide()                                ? PassConstraint::Kind::kGuide
                                                              : PassConstraint::Kind::kPlaneCc;
+      base.guide = spec_.guide;
       // The face's extent along the normal, from a grid of (tip or contact) points.
       lo_ = INFINITY, hi_ = -INFINITY;
       ContactPoint c;
@@ -172,6 +183,11 @@ class Builder {
       const auto [first, last] = *spec_.range;
       for (int k = 0; first + k * step <= last + 1e-9 * (1.0 + std::abs(last)); ++k) {
         values.push_back(first + k * step);
+      }
+    } else if (IsGuide()) {
+      // The guide itself, then offsets by whole stepovers to both sides, over the face.
+      for (long k = static_cast<long>(std::ceil(lo_ / step)); k * step <= hi_; ++k) {
+        values.push_back(static_cast<double>(k) * step);
       }
     } else {
       const int n = std::max(1, static_cast<int>(std::ceil((hi_ - lo_) / step - 1e-9)));
@@ -268,7 +284,7 @@ class Builder {
           break;
         }
         cur = back;
-        h = std::min(2.0 * h, spec_.trace_step_mm);
+        h = std::min(2.0 * h, spec_.newton.max_step_mm);
       }
       if (!found) return;  // an interior root: its pass is found from its own entry
     }
@@ -277,11 +293,11 @@ class Builder {
     cand.constraint = c;
     cand.start = start;
     Trace(e, &cand);
-    cand.order = start.tip.dot(direction);
+    cand.order = IsGuide() ? start.guide_t : start.tip.dot(direction);
     // Each crossing is traced from both ends (one per feed orientation): keep the one that
     // travels along the strategy's direction.
     // Iso lines travel towards increasing (or, reversed, decreasing) parameter: no choice here.
-    const double along = IsPlane() ? (cand.end.tip - cand.start.tip).dot(direction) : 1.0;
+    const double along = Along(cand, direction);
     if (along < 0.0) return;
     // With a tilted tool the two orientations are different passes (the tilt follows the feed)
     // whose ends lie within a few tool radii: keep the one that goes further along `direction`.
@@ -291,7 +307,7 @@ class Builder {
       if ((other.start.tip - start.tip).norm() < 1e-6) return;
       if (IsPlane() && (other.start.tip - cand.end.tip).norm() < near &&
           (other.end.tip - cand.start.tip).norm() < near) {
-        const double other_along = (other.end.tip - other.start.tip).dot(direction);
+        const double other_along = Along(other, direction);
         if (other_along >= along) return;
         other = cand;
         return;
@@ -316,7 +332,7 @@ class Builder {
     for (long k = 0;; ++k) {
       if (k > 4000000)
         Fail(cand->line, cand->constraint, s, cur.uv, "the pass never leaves the face");
-      const double h = spec_.trace_step_mm;
+      const double h = spec_.newton.max_step_mm;
       if (!e.Step(cur, h, spec_.newton, &next, &status, &its)) {
         Fail(cand->line, cand->constraint, s, cur.uv,
              status == EvalStatus::kOk ? fmt::format("the Newton solve did not converge to {} mm",
@@ -373,6 +389,8 @@ const char* StrategySpec::KindName(Kind kind) {
       return "plane_cc";
     case Kind::kUv:
       return "uv";
+    case Kind::kLeadingLine:
+      return "leading_line";
   }
   return "?";
 }

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace dtis::strategies {
 namespace {
@@ -58,6 +59,8 @@ std::string PassConstraint::Describe() const {
       return fmt::format("iso-v line v = {:.9g}", value);
     case Kind::kIsoU:
       return fmt::format("iso-u line u = {:.9g}", value);
+    case Kind::kGuide:
+      return fmt::format("guide curve offset {:.9g} mm", value);
   }
   return "?";
 }
@@ -67,7 +70,10 @@ PassEvaluator::PassEvaluator(const geometry::FaceSurface& face, const geometry::
                              const PassConstraint& constraint)
     : face_(face), tool_(tool), orientation_(orientation), side_(side), constraint_(constraint) {}
 
-EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out) const {
+EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
+                                   double guide_hint) const {
+  Eigen::Vector3d guide_point = Eigen::Vector3d::Zero();
+  Eigen::Vector2d guide_left = Eigen::Vector2d::Zero();
   geometry::SurfaceDerivatives d;
   face_.D2(uv.x(), uv.y(), &d);
   Vec3J s, su, sv;
@@ -90,6 +96,23 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out)
       const Jet m_norm = sqrt(m.squaredNorm());
       if (!(m_norm.a > 1e-9)) return EvalStatus::kFeedUndefined;
       f = m * (Jet(constraint_.feed_sign) / m_norm);
+      break;
+    }
+    case PassConstraint::Kind::kGuide: {
+      const double t = ClosestOnGuide(*constraint_.guide, d.p.x(), d.p.y(), guide_hint);
+      out->guide_t = t;
+      Eigen::Vector3d gd[3];
+      constraint_.guide->Derivatives(t, 1, gd);
+      const Eigen::Vector2d tangent(gd[1].x(), gd[1].y());
+      if (!(tangent.norm() > 0.0)) return EvalStatus::kFeedUndefined;
+      const Eigen::Vector2d left = Eigen::Vector2d(-tangent.y(), tangent.x()).normalized();
+      guide_point = gd[0];
+      guide_left = left;
+      const Vec3J m = Eigen::Vector3d(left.x(), left.y(), 0.0).cast<Jet>();
+      const Vec3J cross = n.cross(m);
+      const Jet c_norm = sqrt(cross.squaredNorm());
+      if (!(c_norm.a > 1e-9)) return EvalStatus::kFeedUndefined;
+      f = cross * (Jet(constraint_.feed_sign) / c_norm);
       break;
     }
     case PassConstraint::Kind::kIsoV:
@@ -117,6 +140,11 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out)
       break;
     case PassConstraint::Kind::kIsoU:
       g = (Seed(uv.x(), 1.0, 0.0) - Jet(constraint_.value)) * Jet(constraint_.iso_scale);
+      break;
+    case PassConstraint::Kind::kGuide:
+      // The signed distance to the guide in XY; its gradient is the normal at the closest point.
+      g = (s.x() - Jet(guide_point.x())) * Jet(guide_left.x()) +
+          (s.y() - Jet(guide_point.y())) * Jet(guide_left.y()) - Jet(constraint_.value);
       break;
   }
   out->uv = uv;
@@ -147,12 +175,14 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out)
 }
 
 int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
-                              const NewtonOptions& options, ContactPoint* out,
-                              EvalStatus* status) const {
+                              const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
+                              double anchor_guide_t) const {
   const double limit = std::max(4.0 * chord, options.max_step_mm);
+  double hint = anchor_guide_t;
   for (int it = 0;; ++it) {
-    *status = Evaluate(uv, out);
+    *status = Evaluate(uv, out, hint);
     if (*status != EvalStatus::kOk) return -1;
+    hint = out->guide_t;
     const Eigen::Vector3d d = out->tip - anchor;
     const double dist = d.norm();
     const double f1 = out->g, f2 = dist - chord;
@@ -178,9 +208,11 @@ int PassEvaluator::SolveArc(const ContactPoint& from, double delta, Eigen::Vecto
   // moves, a relative term of order theta^2 / 12, so the iteration still converges at once.
   const double target = std::abs(delta);
   const double limit = std::max(4.0 * target, options.max_step_mm);
+  double hint = from.guide_t;
   for (int it = 0;; ++it) {
-    *status = Evaluate(uv, out);
+    *status = Evaluate(uv, out, hint);
     if (*status != EvalStatus::kOk) return -1;
+    hint = out->guide_t;
     const Eigen::Vector3d d = out->tip - from.tip;
     const double dist = d.norm();
     const double arc = ArcFromChord(dist, from.tangent, out->tangent);
@@ -219,13 +251,50 @@ ContactPoint PassEvaluator::LastInside(const ContactPoint& inside, double sign, 
   while (hi - lo > kBoundaryMm) {
     const double mid = 0.5 * (lo + hi);
     const Eigen::Vector2d guess = inside.uv + inside.duv * (sign * mid);
-    if (SolveChord(inside.tip, mid, guess, options, &p, &status) >= 0 &&
+    if (SolveChord(inside.tip, mid, guess, options, &p, &status, inside.guide_t) >= 0 &&
         (p.tip - inside.tip).dot(inside.tangent) * sign > 0.0 && Inside(p.uv)) {
       lo = mid;
       best = p;
     } else {
       hi = mid;
     }
+  }
+  return best;
+}
+
+double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint) {
+  const double t0 = guide.FirstParameter(), t1 = guide.LastParameter();
+  const Eigen::Vector2d p(x, y);
+  const auto dist2 = [&](double t) {
+    const Eigen::Vector3d q = guide.Point(t);
+    return (Eigen::Vector2d(q.x(), q.y()) - p).squaredNorm();
+  };
+  const auto newton = [&](double t) {
+    for (int it = 0; it < 30; ++it) {
+      Eigen::Vector3d d[3];
+      guide.Derivatives(t, 2, d);
+      const Eigen::Vector2d r(d[0].x() - x, d[0].y() - y), g1(d[1].x(), d[1].y()),
+          g2(d[2].x(), d[2].y());
+      const double f = r.dot(g1), fp = g1.squaredNorm() + r.dot(g2);
+      if (!(fp > 0.0)) break;
+      const double next = std::clamp(t - f / fp, t0, t1);
+      if (std::abs(next - t) <= 1e-15 * (1.0 + std::abs(t))) return next;
+      t = next;
+    }
+    return t;
+  };
+  double best = std::numeric_limits<double>::quiet_NaN();
+  if (std::isfinite(hint)) best = newton(hint);
+  // From a scan when there is no hint, or when the hint's answer is not a local minimum inside.
+  if (!std::isfinite(best)) {
+    constexpr int kScan = 256;
+    double t_best = t0, d_best = INFINITY;
+    for (int k = 0; k <= kScan; ++k) {
+      const double t = t0 + (t1 - t0) * k / kScan;
+      const double dd = dist2(t);
+      if (dd < d_best) d_best = dd, t_best = t;
+    }
+    best = newton(t_best);
   }
   return best;
 }
@@ -237,28 +306,28 @@ double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector
   return chord * h / std::sin(h);
 }
 
-SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const Eigen::Vector2d& start,
-                         const Eigen::Vector2d& end, double length, const NewtonOptions& options)
-    : eval_(evaluator), index_(index), length_(length), options_(options) {
-  // The builder evaluated both ends already; a failure here is a programming error.
-  if (eval_.Evaluate(start, &start_) != EvalStatus::kOk ||
-      eval_.Evaluate(end, &end_) != EvalStatus::kOk) {
-    throw std::logic_error("SurfacePass: an end of the pass does not evaluate");
-  }
-}
+SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
+                         const ContactPoint& end, double length, const NewtonOptions& options)
+    : eval_(evaluator),
+      index_(index),
+      start_(start),
+      end_(end),
+      length_(length),
+      options_(options) {}
 
 PathState SurfacePass::Start() const {
   PathState st;
   st.u = start_.uv.x();
   st.v = start_.uv.y();
+  st.w = start_.guide_t;
   return st;
 }
 
 Pose SurfacePass::StartPose() const { return {start_.tip, start_.axis}; }
 Pose SurfacePass::EndPose() const { return {end_.tip, end_.axis}; }
 
-EvalStatus SurfacePass::Evaluate(double u, double v, ContactPoint* out) const {
-  return eval_.Evaluate({u, v}, out);
+EvalStatus SurfacePass::Evaluate(const PathState& state, ContactPoint* out) const {
+  return eval_.Evaluate({state.u, state.v}, out, state.w);
 }
 
 const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
@@ -270,7 +339,7 @@ const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
   if (uv == start_.uv) return start_;
   if (uv == end_.uv) return end_;
   // States come from this pass, so they evaluate; if one does not, the next solve reports it.
-  eval_.Evaluate(uv, &cache_[0]);
+  eval_.Evaluate(uv, &cache_[0], state.w);
   cache_valid_[0] = true;
   return cache_[0];
 }
@@ -292,6 +361,9 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   // The march and the builder's trace sum their arcs over different steps: they agree to far
   // better than this. Within it of an end, the face's boundary is that end.
   constexpr double kSnapMm = 1e-4;
+  // A pass may skim the boundary between its ends by what the trace's step cannot see; more than
+  // this off the face is another pass.
+  constexpr double kOffFaceMm = 1e-2;
   bool stalled = false;
   while (target != cur_s && !stalled) {
     const double delta = std::clamp(target - cur_s, -options_.max_step_mm, options_.max_step_mm);
@@ -310,6 +382,11 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
         ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm))) {
       next = eval_.LastInside(cur, delta > 0.0 ? 1.0 : -1.0, (next.tip - cur.tip).norm(), options_);
       stalled = true;
+    } else if (eval_.DistanceOutside(next.uv) > kOffFaceMm) {
+      // Not a skim: this march has left the trace's pass (another branch of the strategy's line).
+      out.status = PathStatus::kLeftDomain;
+      out.state = from;
+      return out;
     }
     cur = next;
     cur_s += delta;
@@ -320,6 +397,7 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   out.state.s = target;
   out.state.u = cur.uv.x();
   out.state.v = cur.uv.y();
+  out.state.w = cur.guide_t;
   out.pose = {cur.tip, cur.axis};
   return out;
 }

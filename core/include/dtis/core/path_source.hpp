@@ -18,6 +18,7 @@ struct PathState {
   double s = 0.0;          // arc length of the tool tip from the start of the path, mm
   double u = 0.0;          // curve parameter, or the surface u of the contact point
   double v = 0.0;          // surface v of the contact point (unused by curves)
+  double w = 0.0;          // a third coordinate if the source needs one (leading_line: the guide's)
   std::int32_t piece = 0;  // a hint for the source: arc-length table interval, pass piece, ...
 };
 

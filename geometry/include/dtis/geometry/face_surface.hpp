@@ -48,6 +48,9 @@ class FaceSurface {
   bool Trimmed() const { return trimmed_; }
   // (u, v) lies in the face's domain: its UV box, and inside its trimming loops for a trimmed face.
   bool Inside(double u, double v) const;
+  // How far (u, v) is off the face, mm: 0 inside; beyond the UV box, the distance to the point at
+  // the nearest box edge; inside the box but outside a trim, infinity (not measured).
+  double DistanceOutside(double u, double v) const;
 
   // Points along the face's boundary in UV, one list per wire, `per_edge` intervals per edge, in
   // wire order. For an untrimmed face this is its parameter rectangle.

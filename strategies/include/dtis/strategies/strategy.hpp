@@ -6,6 +6,7 @@
 // A line of the strategy may cross the face several times: each crossing is a pass, running from
 // where it enters the face's (trimmed) domain to where it leaves it. Passes are found by scanning
 // the face's boundary for the lines' roots and tracing each once (length, gouge check).
+// leading_line: contact points whose XY lies on a guide curve offset in XY by whole stepovers.
 #pragma once
 
 #include <array>
@@ -22,7 +23,7 @@
 namespace dtis::strategies {
 
 struct StrategySpec {
-  enum class Kind { kPlaneCl, kPlaneCc, kUv };
+  enum class Kind { kPlaneCl, kPlaneCc, kUv, kLeadingLine };
   enum class PathMode { kForward, kZigzag };
   enum class Side { kAuto, kFace, kReversed };
 
@@ -31,6 +32,10 @@ struct StrategySpec {
   // tangent plane cut by the strategy plane, oriented along this vector).
   Eigen::Vector3d plane_normal = Eigen::Vector3d::UnitX();
   Eigen::Vector3d direction = Eigen::Vector3d::UnitY();
+  // leading_line: the guide curve (its XY counts: it is projected along Z onto the face); passes
+  // follow it, offset by whole stepovers to its left (+) and right (-) in XY, travelling the
+  // guide's way.
+  std::shared_ptr<const geometry::BSplineCurve> guide;
   // uv: passes along u (iso-v lines) or along v; travel towards increasing parameter.
   bool along_u = true;
   PathMode mode = PathMode::kForward;
@@ -43,7 +48,6 @@ struct StrategySpec {
   int max_passes = 0;  // 0: all
   Side side = Side::kAuto;
   NewtonOptions newton;
-  double trace_step_mm = 0.1;  // step of the one tracing walk that finds each pass's end
 
   static const char* KindName(Kind kind);
 };

@@ -17,11 +17,13 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
 
 #include "dtis/core/path_source.hpp"
+#include "dtis/geometry/bspline_curve.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/tool.hpp"
 #include "dtis/strategies/orientation.hpp"
@@ -30,13 +32,19 @@ namespace dtis::strategies {
 
 // What g(u, v) = 0 means for one pass.
 struct PassConstraint {
-  enum class Kind { kPlaneCl, kPlaneCc, kIsoV, kIsoU };
+  enum class Kind { kPlaneCl, kPlaneCc, kIsoV, kIsoU, kGuide };
   Kind kind = Kind::kPlaneCl;
   Eigen::Vector3d normal = Eigen::Vector3d::UnitX();  // plane strategies: unit plane normal
-  double value = 0.0;      // plane: normal . x = value (mm); iso lines: the fixed parameter
+  // plane: normal . x = value (mm); iso lines: the fixed parameter; guide: the offset from the
+  // guide curve (mm, positive to its left in XY).
+  double value = 0.0;
   double iso_scale = 1.0;  // iso lines: mm per parameter unit, so that g is in mm
+  // leading_line: the guide curve; a pass is where the contact point, seen from above (XY), is
+  // `value` mm to the left of it.
+  std::shared_ptr<const geometry::BSplineCurve> guide;
   // The feed direction f is sign * unit(n x normal) for planes (the tangent plane cut by the
-  // strategy plane), sign * unit(S_u) for iso-v lines and sign * unit(S_v) for iso-u lines.
+  // strategy plane), sign * unit(S_u) for iso-v lines and sign * unit(S_v) for iso-u lines, and
+  // sign * unit(n x N) for a guide, N the guide's horizontal normal at the closest point.
   int feed_sign = 1;
 
   std::string Describe() const;
@@ -45,7 +53,9 @@ struct PassConstraint {
 struct NewtonOptions {
   double tolerance_mm = 1e-6;  // |g| and the chord residual, mm (the paper's 0.001 um)
   int max_iterations = 12;
-  double max_step_mm = 0.5;  // longer moves are split into steps of at most this length
+  // Longer moves are split into steps of at most this length: the builder traces passes with the
+  // same step, so that a march follows the trace's branch where a pass nears another one.
+  double max_step_mm = 0.1;
   // Each step's arc length is met to this: arc lengths summed over steps of any size then agree,
   // so the pose at an arc length does not depend on the state it was reached from.
   double arc_tolerance_mm = 1e-10;
@@ -64,6 +74,9 @@ struct ContactPoint {
   Eigen::Vector2d duv = Eigen::Vector2d::Zero();  // d(u, v)/ds along the travel
   Eigen::Vector3d tangent;                        // unit tip tangent along the travel
   double concave_curvature = 0.0;  // largest principal curvature bending towards the tool, 1/mm
+  // leading_line: parameter of the closest guide point, the warm start of the next evaluation
+  // (the distance to a bending guide has several local minima: a pass follows its own).
+  double guide_t = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Surface + tool + orientation + constraint: the geometry of one pass.
@@ -74,11 +87,14 @@ class PassEvaluator {
                 const Orientation& orientation, int side, const PassConstraint& constraint);
   PassEvaluator(const PassEvaluator&) = default;
 
-  EvalStatus Evaluate(const Eigen::Vector2d& uv, ContactPoint* out) const;
+  // guide_hint: leading_line's closest guide parameter near this point (NaN: search the guide).
+  EvalStatus Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
+                      double guide_hint = std::numeric_limits<double>::quiet_NaN()) const;
   // Newton: the point with g = 0 whose tip is `chord` mm from `anchor`, from `uv`. Returns the
   // iterations (updates) spent, or -1 if it did not converge; `status` says why it stopped.
   int SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
-                 const NewtonOptions& options, ContactPoint* out, EvalStatus* status) const;
+                 const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
+                 double anchor_guide_t = std::numeric_limits<double>::quiet_NaN()) const;
   // Newton: the point with g = 0 whose tip is |delta| mm of arc from `from`'s (arc from the chord
   // and the tangents, ArcFromChord), from `uv`. Iterations spent, or -1.
   int SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
@@ -88,6 +104,9 @@ class PassEvaluator {
   bool Step(const ContactPoint& from, double delta, const NewtonOptions& options, ContactPoint* to,
             EvalStatus* status, int* iterations) const;
   bool Inside(const Eigen::Vector2d& uv) const { return face_.Inside(uv.x(), uv.y()); }
+  double DistanceOutside(const Eigen::Vector2d& uv) const {
+    return face_.DistanceOutside(uv.x(), uv.y());
+  }
   // The last point of the face's domain on the way from `inside` (sign +1: along the travel)
   // towards the point `chord_out` mm away, known to be outside; bisection on the chord to 1e-10 mm.
   ContactPoint LastInside(const ContactPoint& inside, double sign, double chord_out,
@@ -107,6 +126,10 @@ class PassEvaluator {
   PassConstraint constraint_;
 };
 
+// The parameter of the point of `guide` closest to (x, y) in XY, by Newton from `hint` (NaN: from
+// a coarse scan of the curve).
+double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint);
+
 // The arc length between two points with unit tangents ta, tb, `chord` apart: exact for a circular
 // arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb);
@@ -114,8 +137,8 @@ double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector
 class SurfacePass final : public PathSource {
  public:
   // `start` and `end` lie on the face's boundary, `length` is the tip arc length between them.
-  SurfacePass(const PassEvaluator& evaluator, int index, const Eigen::Vector2d& start,
-              const Eigen::Vector2d& end, double length, const NewtonOptions& options);
+  SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
+              const ContactPoint& end, double length, const NewtonOptions& options);
 
   PathState Start() const override;
   std::optional<double> Length() const override { return length_; }
@@ -126,8 +149,8 @@ class SurfacePass final : public PathSource {
   Pose StartPose() const;
   Pose EndPose() const;
   const PassEvaluator& Evaluator() const { return eval_; }
-  // The contact point at (u, v), for tests and reports.
-  EvalStatus Evaluate(double u, double v, ContactPoint* out) const;
+  // The contact point of a state of this pass, for tests and reports.
+  EvalStatus Evaluate(const PathState& state, ContactPoint* out) const;
 
  private:
   const ContactPoint& From(const PathState& state, int* slot) const;
