@@ -294,11 +294,11 @@ class Builder {
     cand.start = start;
     Trace(e, &cand);
     cand.order = IsGuide() ? start.guide_t : start.tip.dot(direction);
-    // Each crossing is traced from both ends (one per feed orientation): keep the one that
-    // travels along the strategy's direction.
+    // Each crossing is traced from both ends (one per feed orientation): keep the one that goes
+    // further along the strategy's direction (with a tilted tool, a crossing that runs across the
+    // direction may go slightly against it both ways).
     // Iso lines travel towards increasing (or, reversed, decreasing) parameter: no choice here.
     const double along = Along(cand, direction);
-    if (along < 0.0) return;
     // With a tilted tool the two orientations are different passes (the tilt follows the feed)
     // whose ends lie within a few tool radii: keep the one that goes further along `direction`.
     const double near = 2.0 * tool_.radius + 1e-3;
