@@ -41,3 +41,45 @@ BENCHMARK_CAPTURE(Plan, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml"
     ->Iterations(1);
 
 }  // namespace
+
+namespace {
+
+// A whole surface job (STEP read, passes built and traced, passes and links planned), with 1 or 2
+// threads: real-time factor, setpoints per second and Newton iterations per setpoint.
+//   build/bench/dtis_bench --benchmark_filter=Surface
+void Surface(benchmark::State& state, const char* job_file) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  dtis::io::RunOptions options;
+  options.threads = static_cast<int>(state.range(0));
+  long setpoints = 0, iterations = 0, evaluations = 0;
+  double motion = 0.0;
+  for (auto _ : state) {
+    const auto r = dtis::io::RunJob(job, options);
+    setpoints += r.vpop.setpoints;
+    iterations += r.vpop.path_iterations;
+    evaluations += r.vpop.evaluations;
+    motion += r.verify.motion_time_s;
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["setpoints_per_s"] =
+      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
+  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+  state.counters["newton_per_setpoint"] =
+      static_cast<double>(iterations) / static_cast<double>(setpoints);
+  state.counters["evals_per_setpoint"] =
+      static_cast<double>(evaluations) / static_cast<double>(setpoints);
+}
+
+BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(Surface, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
+
+}  // namespace

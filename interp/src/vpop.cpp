@@ -405,9 +405,29 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
         if (f_lo > 0.0) {
           a_hi = lo;  // cannot stop in time even braking hardest: brake hardest
         } else {
+          // Braking to the end follows the stop law, so its next acceleration is nearly the
+          // answer: bracket it tightly before the search (a few evaluations instead of dozens).
+          const double guess = StopAcceleration(v0, a0, jerk * kReleaseJerkFraction,
+                                                acceleration * kReleaseJerkFraction, dt_);
+          const double delta = 1e-7 * (std::abs(guess) + jerk * dt_);
+          for (const double g : {guess, guess - delta, guess + delta}) {
+            if (!(g > lo && g < hi)) continue;
+            const double f_g = reach(g) - *length_;
+            if (f_g <= 0.0) {
+              lo = g, f_lo = f_g;
+            } else {
+              hi = g, f_hi = f_g;
+            }
+          }
           // The largest a with reach(a) <= L: Illinois regula falsi, bisection where reach is -inf.
           int side = 0;
-          for (int k = 0; k < 60 && hi - lo > 1e-12 * (1.0 + std::abs(hi)); ++k) {
+          // Where reach is -inf (the stop would reverse), an acceleration known to 1e-9 of the
+          // law's jerk step moves positions by far less than their rounding: stop there.
+          const auto tight = [&] {
+            return std::isfinite(f_lo) ? 1e-12 * (1.0 + std::abs(hi))
+                                       : 1e-9 * (std::abs(hi) + jerk * dt_);
+          };
+          for (int k = 0; k < 60 && hi - lo > tight(); ++k) {
             double mid =
                 std::isfinite(f_lo) ? lo + (hi - lo) * (-f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
             if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
