@@ -2,12 +2,18 @@
 // setpoint on the cutter-location surface and on its strategy plane, and the error paths.
 #include <gtest/gtest.h>
 
+#include <BRepBuilderAPI_MakeEdge.hxx>
+#include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakeWire.hxx>
 #include <BRep_Tool.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_Surface.hxx>
+#include <TopoDS_Wire.hxx>
 #include <cmath>
+#include <gp_Circ.hxx>
+#include <gp_Pln.hxx>
 #include <numbers>
 #include <random>
 
@@ -424,6 +430,41 @@ TEST(SurfacePass, LeadingLineKeepsTheContactPointAtItsOffsetFromTheGuide) {
       st = smp.state;
       if (s >= *pass->Length()) break;
     }
+  }
+}
+
+}  // namespace
+}  // namespace dtis
+
+namespace dtis {
+namespace {
+
+// A trimmed face: a disc of radius 20 mm cut from the plane z = 0. A ball end's passes in planes
+// x = c are the chords of the disc: they start and end on the trimming circle and are
+// 2 sqrt(R^2 - c^2) long (a closed form independent of the strategies' code).
+TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {
+  constexpr double kR = 20.0;
+  const gp_Circ circle(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), kR);
+  const TopoDS_Wire wire = BRepBuilderAPI_MakeWire(BRepBuilderAPI_MakeEdge(circle));
+  const TopoDS_Face disc = BRepBuilderAPI_MakeFace(gp_Pln(gp::XOY()), wire);
+  const FaceSurface surface(disc, "disc");
+  ASSERT_TRUE(surface.Trimmed());
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kPlaneCc;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 3.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+  ASSERT_GE(passes.passes.size(), 12u);
+  for (const auto& pass : passes.passes) {
+    const double c = pass->Evaluator().Constraint().value;
+    const double half = std::sqrt(kR * kR - c * c);
+    EXPECT_NEAR(*pass->Length(), 2.0 * half, 1e-6) << "x = " << c;
+    EXPECT_NEAR(pass->StartPose().tip.y(), -half, 1e-6) << "x = " << c;
+    EXPECT_NEAR(pass->EndPose().tip.y(), half, 1e-6) << "x = " << c;
+    // The planner's march ends there too.
+    const PathSample end = pass->At(pass->Start(), *pass->Length());
+    EXPECT_NEAR(end.pose.tip.y(), half, 1e-6) << "x = " << c;
   }
 }
 
