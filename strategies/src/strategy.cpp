@@ -329,15 +329,26 @@ class Builder {
     EvalStatus status = EvalStatus::kOk;
     int its = 0;
     CheckGouge(*cand, cur, s);
+    const double full = spec_.newton.max_step_mm;
+    double h = full;
     for (long k = 0;; ++k) {
       if (k > 4000000)
         Fail(cand->line, cand->constraint, s, cur.uv, "the pass never leaves the face");
-      const double h = spec_.newton.max_step_mm;
       if (!e.Step(cur, h, spec_.newton, &next, &status, &its)) {
+        // Shorter steps first: where the pass bends hard (a gouge ahead) they get close enough
+        // for the curvature check to say so.
+        if (status == EvalStatus::kOk && h > full / 1024.0) {
+          h *= 0.5;
+          continue;
+        }
         Fail(cand->line, cand->constraint, s, cur.uv,
-             status == EvalStatus::kOk ? fmt::format("the Newton solve did not converge to {} mm",
-                                                     spec_.newton.tolerance_mm)
-                                       : EvalStatusText(status));
+             status == EvalStatus::kOk
+                 ? fmt::format("the Newton solve did not converge to {} mm (even in steps of {} "
+                               "mm): the strategy's line is singular here (surface radius of "
+                               "curvature {:.3g} mm, normal . tool axis {:.3g})",
+                               spec_.newton.tolerance_mm, h, std::abs(1.0 / cur.concave_curvature),
+                               cur.n.dot(cur.axis))
+                 : EvalStatusText(status));
       }
       if (!e.Inside(next.uv)) {
         const ContactPoint end = Bisect(e, cur, 1.0, h);
@@ -350,6 +361,7 @@ class Builder {
       s += h;
       cur = next;
       CheckGouge(*cand, cur, s);
+      h = std::min(full, 2.0 * h);
     }
   }
 

@@ -365,11 +365,17 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   // this off the face is another pass.
   constexpr double kOffFaceMm = 1e-2;
   bool stalled = false;
+  double longest = options_.max_step_mm;
   while (target != cur_s && !stalled) {
-    const double delta = std::clamp(target - cur_s, -options_.max_step_mm, options_.max_step_mm);
+    const double delta = std::clamp(target - cur_s, -longest, longest);
     ContactPoint next;
     EvalStatus status = EvalStatus::kOk;
     if (!eval_.Step(cur, delta, options_, &next, &status, &out.iterations)) {
+      // Shorter steps where the pass bends hard, as the builder's trace did.
+      if (status == EvalStatus::kOk && longest > options_.max_step_mm / 1024.0) {
+        longest = 0.5 * std::abs(delta);
+        continue;
+      }
       out.status = PathStatus::kNoConvergence;
       out.state = from;
       return out;
