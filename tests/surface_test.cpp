@@ -370,8 +370,16 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
       PathState st = pass->Start();
       const double length = *pass->Length();
       const double step = 0.05 + 0.5 * uni(rng);
+      bool early = false;
       for (double s = step;; s += step) {
-        const PathSample smp = pass->At(st, std::min(s, length));
+        PathSample smp = pass->At(st, std::min(s, length));
+        if (smp.status == PathStatus::kEnd) {
+          // A pass meeting the boundary at a grazing angle may end before its traced length: it
+          // ends on the boundary, or as far off it as a skim may go (0.01 mm, surface_pass.cpp).
+          ASSERT_LE(pass->Evaluator().Face().DistanceOutside(smp.state.u, smp.state.v), 1e-2);
+          early = true;
+          break;
+        }
         ASSERT_EQ(smp.status, PathStatus::kOk)
             << pass->Describe(st) << " asked " << s << " of " << length << " start "
             << pass->Start().u << "," << pass->Start().v << " end "
@@ -383,7 +391,7 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
         st = smp.state;
         if (s >= length) break;
       }
-      EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
+      if (!early) EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
     }
   }
   EXPECT_GT(built, 0);

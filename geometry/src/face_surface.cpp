@@ -117,7 +117,28 @@ double FaceSurface::DistanceOutside(double u, double v) const {
   if (Inside(u, v)) return 0.0;
   const double cu = std::clamp(u, u0_, u1_), cv = std::clamp(v, v0_, v1_);
   if (cu == u && cv == v) return INFINITY;
-  return (Point(u, v) - Point(cu, cv)).norm();
+  // The distance to the nearest violated side of the UV box, along that side (Newton on the
+  // side's free parameter): clamping alone misjudges it on a skewed parametrization.
+  const Eigen::Vector3d p = Point(u, v);
+  double best = INFINITY;
+  SurfaceDerivatives d;
+  const auto along_side = [&](bool fixed_u, double fixed, double t, double lo, double hi) {
+    for (int it = 0; it < 20; ++it) {
+      const double su = fixed_u ? fixed : t, sv = fixed_u ? t : fixed;
+      D2(su, sv, &d);
+      const Eigen::Vector3d r = d.p - p, dt = fixed_u ? d.sv : d.su, dtt = fixed_u ? d.svv : d.suu;
+      const double f = r.dot(dt), fp = dt.squaredNorm() + r.dot(dtt);
+      if (!(fp > 0.0)) break;
+      const double next = std::clamp(t - f / fp, lo, hi);
+      if (std::abs(next - t) <= 1e-14 * (1.0 + std::abs(t))) break;
+      t = next;
+    }
+    const double su = fixed_u ? fixed : t, sv = fixed_u ? t : fixed;
+    best = std::min(best, (Point(su, sv) - p).norm());
+  };
+  if (u != cu) along_side(true, cu, cv, v0_, v1_);
+  if (v != cv) along_side(false, cv, cu, u0_, u1_);
+  return best;
 }
 
 std::vector<std::vector<Eigen::Vector2d>> FaceSurface::Boundary(int per_edge) const {

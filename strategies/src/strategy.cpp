@@ -350,8 +350,22 @@ class Builder {
                                cur.n.dot(cur.axis))
                  : EvalStatusText(status));
       }
-      if (!e.Inside(next.uv)) {
-        const ContactPoint end = Bisect(e, cur, 1.0, h);
+      // A pass that skims the boundary may leave and re-enter between two steps: look at the
+      // middle of the step (cubic Hermite in (u, v)) and, if it is off the face, solve there.
+      double out_chord = Inside(e, next) ? 0.0 : h;
+      if (out_chord == 0.0) {
+        const Eigen::Vector2d mid = 0.5 * (cur.uv + next.uv) + (cur.duv - next.duv) * (h / 8.0);
+        ContactPoint m;
+        EvalStatus ms;
+        if (!e.Inside(mid) &&
+            e.SolveChord(cur.tip, 0.5 * (next.tip - cur.tip).norm(), mid, spec_.newton, &m, &ms,
+                         cur.guide_t) >= 0 &&
+            !e.Inside(m.uv)) {
+          out_chord = (m.tip - cur.tip).norm();
+        }
+      }
+      if (out_chord > 0.0) {
+        const ContactPoint end = Bisect(e, cur, 1.0, out_chord);
         s += ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
         cand->end = end;
         cand->length = s;
@@ -364,6 +378,8 @@ class Builder {
       h = std::min(full, 2.0 * h);
     }
   }
+
+  static bool Inside(const PassEvaluator& e, const ContactPoint& p) { return e.Inside(p.uv); }
 
   void CheckGouge(const Candidate& cand, const ContactPoint& p, double s) const {
     // Contact above the ball's equator by less than 0.006 deg overlaps the shank by < r 1e-8.

@@ -56,8 +56,9 @@ struct NewtonOptions {
   // Longer moves are split into steps of at most this length: the builder traces passes with the
   // same step, so that a march follows the trace's branch where a pass nears another one.
   double max_step_mm = 0.1;
-  // Each step's arc length is met to this: arc lengths summed over steps of any size then agree,
-  // so the pose at an arc length does not depend on the state it was reached from.
+  // Each step's arc length, and the strategy's constraint when Newton gets there cheaply, are met
+  // to this: arc lengths summed over steps of any size then agree, so the pose at an arc length
+  // does not depend on the state it was reached from, and poses do not jitter across the line.
   double arc_tolerance_mm = 1e-10;
 };
 
