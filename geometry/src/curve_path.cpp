@@ -71,7 +71,7 @@ PathSample CurvePath::At(const PathState& from, double s) const {
   }
   int hint = from.piece;
   const double u = map_.Parameter(s, &hint);
-  sample.state = {s, u, 0.0, hint};
+  sample.state = {.s = s, .u = u, .piece = hint};
   sample.pose = PoseAt(u);
   return sample;
 }
@@ -94,7 +94,7 @@ PathSample LinePath::At(const PathState&, double s) const {
     sample.status = s > length_ ? PathStatus::kEnd : PathStatus::kOk;
     s = length_;
   }
-  sample.state = {s, s / length_, 0.0, 0};
+  sample.state = {.s = s, .u = s / length_};
   sample.pose.tip = from_ + s * direction_;
   sample.pose.axis = axis_;
   return sample;
