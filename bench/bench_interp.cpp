@@ -4,6 +4,7 @@
 #include <benchmark/benchmark.h>
 
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/gcode.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/kinematics/machines.hpp"
 
@@ -81,5 +82,32 @@ BENCHMARK_CAPTURE(Surface, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->Iterations(1);
+
+}  // namespace
+
+namespace {
+
+// Reading G-code: a generated 100 000-block program (a zigzag of G1 blocks with a few arcs).
+//   build/bench/dtis_bench --benchmark_filter=Gcode
+void GcodeRead(benchmark::State& state) {
+  std::string text = "G21 G90 G17\nG0 X0 Y0 Z1\nG1 Z0 F3000\n";
+  for (int k = 0; k < 100000; ++k) {
+    if (k % 50 == 49) {
+      text += "G3 X" + std::to_string(k * 0.1) + " Y0 R0.05\n";
+    } else {
+      text += "G1 X" + std::to_string(k * 0.1 + 0.05) + " Y" + std::to_string((k % 7) * 0.013) +
+              " Z-0.0" + std::to_string(k % 10) + "\n";
+    }
+  }
+  long blocks = 0;
+  for (auto _ : state) {
+    const auto p = dtis::io::ParseGcode(text, "bench.ngc");
+    blocks += static_cast<long>(p.moves.size());
+    benchmark::DoNotOptimize(p);
+  }
+  state.counters["blocks_per_s"] =
+      benchmark::Counter(static_cast<double>(blocks), benchmark::Counter::kIsRate);
+}
+BENCHMARK(GcodeRead)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/io/curve_file.hpp"
+#include "dtis/io/gcode.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -16,6 +17,7 @@ namespace {
 #define DTIS_PARSER_curve 2
 #define DTIS_PARSER_machine 3
 #define DTIS_PARSER_setpoints 4
+#define DTIS_PARSER_gcode 5
 #define DTIS_CAT(a, b) a##b
 #define DTIS_SELECT(x) DTIS_CAT(DTIS_PARSER_, x)
 #define DTIS_PARSER DTIS_SELECT(DTIS_FUZZ_PARSER)
@@ -29,8 +31,10 @@ void Parse(std::string_view text) {
   dtis::kinematics::ParseMachine(text, "fuzz.toml");
 #elif DTIS_PARSER == DTIS_PARSER_setpoints
   dtis::io::ParseSetpoints(text, "fuzz.csv");
+#elif DTIS_PARSER == DTIS_PARSER_gcode
+  dtis::io::ParseGcode(text, "fuzz.ngc");
 #else
-#error "DTIS_FUZZ_PARSER must be job, curve, machine or setpoints"
+#error "DTIS_FUZZ_PARSER must be job, curve, machine, setpoints or gcode"
 #endif
 }
 

@@ -1,0 +1,303 @@
+#include "dtis/io/gcode.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <optional>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::io {
+namespace {
+
+// The state a block leaves for the next ones (RS274/NGC modal groups that matter here).
+struct Modal {
+  GcodeMove::Kind motion = GcodeMove::Kind::kRapid;
+  bool motion_set = false;
+  bool incremental = false;
+  double to_mm = 1.0;  // G21; 25.4 after G20
+  double feed_mm_min = 0.0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  std::array<double, 3> rotary{};
+};
+
+struct Word {
+  char letter;
+  double value;
+  int column;  // 1-based
+};
+
+class Reader {
+ public:
+  explicit Reader(std::string name) { program_.file = std::move(name); }
+
+  // Returns false after M2/M30 (the program's end: later lines are not read).
+  bool Line(std::string_view text, int line) {
+    line_ = line;
+    std::vector<Word> words;
+    if (!Words(text, &words)) return true;
+    return Block(words);
+  }
+
+  GcodeProgram Take() { return std::move(program_); }
+
+ private:
+  [[noreturn]] void Fail(int column, const std::string& what) const {
+    throw Error("{}:{}:{}: {}", program_.file, line_, column, what);
+  }
+
+  // Splits a line into words, dropping comments. Returns false for an empty block.
+  bool Words(std::string_view text, std::vector<Word>* words) {
+    std::size_t i = 0;
+    const std::size_t n = text.size();
+    bool only_percent = true;
+    while (i < n) {
+      const char c = text[i];
+      if (c == '(') {
+        const std::size_t close = text.find(')', i);
+        if (close == std::string_view::npos) Fail(static_cast<int>(i) + 1, "unclosed comment '('");
+        i = close + 1;
+        continue;
+      }
+      if (c == ';') break;
+      if (std::isspace(static_cast<unsigned char>(c))) {
+        ++i;
+        continue;
+      }
+      if (c == '%') {
+        ++i;
+        continue;
+      }
+      only_percent = false;
+      const int column = static_cast<int>(i) + 1;
+      const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      if (!std::isalpha(static_cast<unsigned char>(c))) {
+        Fail(column, fmt::format("expected a word (a letter and a number), got '{}'", c));
+      }
+      ++i;
+      while (i < n && (text[i] == ' ' || text[i] == '\t')) ++i;
+      // A number: [+-] digits [. digits], NGC style (".5", "5.", "-0.25").
+      std::size_t start = i;
+      if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+      while (i < n && (std::isdigit(static_cast<unsigned char>(text[i])) || text[i] == '.')) ++i;
+      std::string_view number = text.substr(start, i - start);
+      if (!number.empty() && number.front() == '+') number.remove_prefix(1);
+      double value = 0.0;
+      const auto [end, ec] = std::from_chars(number.data(), number.data() + number.size(), value);
+      if (number.empty() || ec != std::errc() || end != number.data() + number.size() ||
+          !std::isfinite(value)) {
+        Fail(column, fmt::format("word '{}' needs a number", letter));
+      }
+      words->push_back({letter, value, column});
+    }
+    return !words->empty() && !only_percent;
+  }
+
+  static bool IsCode(double value, double code) { return std::abs(value - code) < 1e-9; }
+
+  bool Block(const std::vector<Word>& words) {
+    std::optional<GcodeMove::Kind> motion;
+    std::array<std::optional<double>, 6> axis{};  // X Y Z A B C as written
+    std::optional<double> i_word, j_word, r_word;
+    int motion_column = 0, first_axis_column = 0;
+    bool end = false;
+    for (const Word& w : words) {
+      switch (w.letter) {
+        case 'G':
+          if (IsCode(w.value, 0)) {
+            motion = GcodeMove::Kind::kRapid, motion_column = w.column;
+          } else if (IsCode(w.value, 1)) {
+            motion = GcodeMove::Kind::kLinear, motion_column = w.column;
+          } else if (IsCode(w.value, 2)) {
+            motion = GcodeMove::Kind::kArcCw, motion_column = w.column;
+          } else if (IsCode(w.value, 3)) {
+            motion = GcodeMove::Kind::kArcCcw, motion_column = w.column;
+          } else if (IsCode(w.value, 20)) {
+            modal_.to_mm = 25.4;
+          } else if (IsCode(w.value, 21)) {
+            modal_.to_mm = 1.0;
+          } else if (IsCode(w.value, 90)) {
+            modal_.incremental = false;
+          } else if (IsCode(w.value, 91)) {
+            modal_.incremental = true;
+          } else if (IsCode(w.value, 17) || IsCode(w.value, 94) || IsCode(w.value, 40) ||
+                     IsCode(w.value, 49) || IsCode(w.value, 80)) {
+            // XY plane, feed per minute, compensation and canned-cycle cancels: nothing to do.
+          } else {
+            Fail(w.column, fmt::format("G{} is not supported (supported: G0 G1 G2 G3 G17 G20 G21 "
+                                       "G40 G49 G80 G90 G91 G94)",
+                                       w.value));
+          }
+          break;
+        case 'M':
+          if (IsCode(w.value, 2) || IsCode(w.value, 30)) {
+            end = true;
+          } else if (!(IsCode(w.value, 3) || IsCode(w.value, 4) || IsCode(w.value, 5) ||
+                       IsCode(w.value, 6) || IsCode(w.value, 7) || IsCode(w.value, 8) ||
+                       IsCode(w.value, 9))) {
+            Fail(w.column, fmt::format("M{} is not supported (supported: M2 M3 M4 M5 M6 M7 M8 M9 "
+                                       "M30)",
+                                       w.value));
+          }
+          break;
+        case 'F':
+          if (!(w.value > 0.0)) {
+            Fail(w.column, fmt::format("feed F must be positive, got {}", w.value));
+          }
+          modal_.feed_mm_min = w.value * modal_.to_mm;
+          break;
+        case 'N':
+        case 'S':
+        case 'T':
+          break;
+        case 'X':
+        case 'Y':
+        case 'Z':
+        case 'A':
+        case 'B':
+        case 'C': {
+          static constexpr char kAxes[] = "XYZABC";
+          const auto k = static_cast<std::size_t>(std::string_view(kAxes).find(w.letter));
+          if (axis[k]) Fail(w.column, fmt::format("{} appears twice in the block", w.letter));
+          axis[k] = w.value;
+          if (!first_axis_column) first_axis_column = w.column;
+          break;
+        }
+        case 'I':
+          i_word = w.value;
+          break;
+        case 'J':
+          j_word = w.value;
+          break;
+        case 'R':
+          r_word = w.value;
+          break;
+        default:
+          Fail(w.column, fmt::format("word '{}' is not supported", w.letter));
+      }
+    }
+    if (motion) modal_.motion = *motion, modal_.motion_set = true;
+    const bool moves =
+        std::any_of(axis.begin(), axis.end(), [](const auto& a) { return a.has_value(); });
+    if ((i_word || j_word || r_word) && !moves) {
+      Fail(motion_column ? motion_column : 1, "I, J or R without an axis word to move to");
+    }
+    if (moves) {
+      if (!modal_.motion_set) {
+        Fail(first_axis_column, "an axis word before any motion mode (G0, G1, G2, G3)");
+      }
+      Move(axis, i_word, j_word, r_word, motion_column ? motion_column : first_axis_column);
+    }
+    return !end;
+  }
+
+  void Move(const std::array<std::optional<double>, 6>& axis, std::optional<double> i_word,
+            std::optional<double> j_word, std::optional<double> r_word, int column) {
+    GcodeMove m;
+    m.kind = modal_.motion;
+    m.line = line_;
+    Eigen::Vector3d to = modal_.position;
+    for (int k = 0; k < 3; ++k) {
+      if (!axis[static_cast<std::size_t>(k)]) continue;
+      const double v = *axis[static_cast<std::size_t>(k)] * modal_.to_mm;
+      to[k] = modal_.incremental ? to[k] + v : v;
+    }
+    std::array<double, 3> rotary = modal_.rotary;
+    for (int k = 0; k < 3; ++k) {
+      const auto& w = axis[static_cast<std::size_t>(k + 3)];
+      if (!w) continue;
+      rotary[static_cast<std::size_t>(k)] =
+          modal_.incremental ? rotary[static_cast<std::size_t>(k)] + *w : *w;
+      program_.uses_rotary[static_cast<std::size_t>(k)] = true;
+    }
+    m.to = to;
+    m.rotary = rotary;
+    if (m.kind != GcodeMove::Kind::kRapid) {
+      if (!(modal_.feed_mm_min > 0.0)) Fail(column, "a feed move before any feed F was given");
+      m.feed_mm_min = modal_.feed_mm_min;
+    }
+    if (m.kind == GcodeMove::Kind::kArcCw || m.kind == GcodeMove::Kind::kArcCcw) {
+      Arc(&m, i_word, j_word, r_word, column);
+    } else if (i_word || j_word || r_word) {
+      Fail(column, "I, J or R on a straight move");
+    }
+    modal_.position = to;
+    modal_.rotary = rotary;
+    program_.moves.push_back(m);
+  }
+
+  void Arc(GcodeMove* m, std::optional<double> i_word, std::optional<double> j_word,
+           std::optional<double> r_word, int column) {
+    const Eigen::Vector2d from = modal_.position.head<2>(), to = m->to.head<2>();
+    Eigen::Vector2d center;
+    if (r_word) {
+      if (i_word || j_word) Fail(column, "an arc takes I/J or R, not both");
+      const double r = std::abs(*r_word) * modal_.to_mm;
+      const Eigen::Vector2d chord = to - from;
+      const double c = chord.norm();
+      if (!(c > 0.0)) Fail(column, "an R arc needs distinct start and end points");
+      if (c > 2.0 * r * (1.0 + 1e-9)) {
+        Fail(column, fmt::format("arc radius {} mm is less than half the chord ({} mm)", r, c / 2));
+      }
+      const double h = std::sqrt(std::max(0.0, r * r - c * c / 4.0));
+      const Eigen::Vector2d mid = 0.5 * (from + to), left(-chord.y() / c, chord.x() / c);
+      // The short arc for R > 0, the long one for R < 0; counter-clockwise arcs turn left.
+      const bool ccw = m->kind == GcodeMove::Kind::kArcCcw;
+      const double side = ((*r_word > 0.0) == ccw) ? 1.0 : -1.0;
+      center = mid + left * (side * h);
+    } else {
+      if (!i_word && !j_word) Fail(column, "an arc (G2/G3) needs I and/or J, or R");
+      center = from + Eigen::Vector2d(i_word.value_or(0.0), j_word.value_or(0.0)) * modal_.to_mm;
+      const double r0 = (from - center).norm(), r1 = (to - center).norm();
+      // LinuxCNC's own check: the end radius may differ by 0.002 mm (or 0.1 % of it).
+      if (std::abs(r0 - r1) > std::max(0.002, 1e-3 * r0)) {
+        Fail(column,
+             fmt::format("arc radius mismatch: {:.6g} mm at the start, {:.6g} mm at the end", r0,
+                         r1));
+      }
+      if (!(r0 > 0.0)) Fail(column, "an arc of zero radius");
+    }
+    m->center = Eigen::Vector3d(center.x(), center.y(), modal_.position.z());
+  }
+
+  GcodeProgram program_;
+  Modal modal_;
+  int line_ = 0;
+};
+
+}  // namespace
+
+GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
+  Reader reader(source_name);
+  int line = 0;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = text.find('\n', start);
+    std::string_view l =
+        text.substr(start, end == std::string_view::npos ? text.size() - start : end - start);
+    if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    if (!reader.Line(l, ++line)) break;
+    if (end == std::string_view::npos) break;
+    start = end + 1;
+  }
+  return reader.Take();
+}
+
+GcodeProgram ReadGcode(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error("{}: cannot open the G-code file", path);
+  Reader reader(path);
+  std::string l;
+  int line = 0;
+  while (std::getline(in, l)) {
+    if (!l.empty() && l.back() == '\r') l.pop_back();
+    if (!reader.Line(l, ++line)) break;
+  }
+  return reader.Take();
+}
+
+}  // namespace dtis::io

@@ -1,0 +1,99 @@
+// The G-code reader: modal state, units, incremental moves, arcs by I/J and R, and one clear error
+// with line and column for each kind of bad block.
+#include "dtis/io/gcode.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "dtis/core/error.hpp"
+
+namespace dtis::io {
+namespace {
+
+std::string ErrorOf(const std::string& text) {
+  try {
+    ParseGcode(text, "p.ngc");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Gcode, ReadsModalMovesUnitsAndComments) {
+  const GcodeProgram p = ParseGcode(
+      "%\n"
+      "(lock contour) G21 G90 G17 G94\n"
+      "N10 G0 X0 Y0 Z5 ; rapid above\n"
+      "G1 Z0 F600\n"
+      "X10 (modal G1, modal F)\n"
+      "Y10 F1200\n"
+      "G91 X-5 Y-5\n"
+      "G90 G20 X1\n"
+      "M30\n"
+      "G1 X99 (after the end: not read)\n",
+      "p.ngc");
+  ASSERT_EQ(p.moves.size(), 6u);
+  EXPECT_EQ(p.moves[0].kind, GcodeMove::Kind::kRapid);
+  EXPECT_EQ(p.moves[0].feed_mm_min, 0.0);
+  EXPECT_EQ(p.moves[1].to, Eigen::Vector3d(0, 0, 0));
+  EXPECT_EQ(p.moves[1].feed_mm_min, 600.0);
+  EXPECT_EQ(p.moves[2].to, Eigen::Vector3d(10, 0, 0));
+  EXPECT_EQ(p.moves[2].kind, GcodeMove::Kind::kLinear);
+  EXPECT_EQ(p.moves[3].feed_mm_min, 1200.0);
+  EXPECT_EQ(p.moves[4].to, Eigen::Vector3d(5, 5, 0));
+  EXPECT_EQ(p.moves[5].to, Eigen::Vector3d(25.4, 5, 0));
+  EXPECT_EQ(p.moves[5].line, 8);
+  EXPECT_FALSE(p.uses_rotary[0]);
+}
+
+TEST(Gcode, ArcsByCentreOffsetAndByRadius) {
+  // A quarter circle of radius 10 around the origin, counter-clockwise, both ways.
+  const GcodeProgram ij = ParseGcode("G0 X10 Y0\nG3 X0 Y10 I-10 J0 F500\n", "p.ngc");
+  ASSERT_EQ(ij.moves.size(), 2u);
+  EXPECT_EQ(ij.moves[1].kind, GcodeMove::Kind::kArcCcw);
+  EXPECT_NEAR(ij.moves[1].center.norm(), 0.0, 1e-12);
+  const GcodeProgram r = ParseGcode("G0 X10 Y0\nG3 X0 Y10 R10 F500\n", "p.ngc");
+  EXPECT_NEAR(r.moves[1].center.norm(), 0.0, 1e-12);
+  // R < 0: the long way round, centre on the other side of the chord.
+  const GcodeProgram lr = ParseGcode("G0 X10 Y0\nG3 X0 Y10 R-10 F500\n", "p.ngc");
+  EXPECT_NEAR((lr.moves[1].center.head<2>() - Eigen::Vector2d(10, 10)).norm(), 0.0, 1e-12);
+  // Clockwise with R > 0 from (10, 0) to (0, 10): the short arc turning right.
+  const GcodeProgram cw = ParseGcode("G0 X10 Y0\nG2 X0 Y10 R10 F500\n", "p.ngc");
+  EXPECT_NEAR((cw.moves[1].center.head<2>() - Eigen::Vector2d(10, 10)).norm(), 0.0, 1e-12);
+}
+
+TEST(Gcode, FiveAxisWordsAreDegreesAndAbsolute) {
+  const GcodeProgram p = ParseGcode("G1 X1 A10 C-90 F100\nG91 A5\n", "p.ngc");
+  ASSERT_EQ(p.moves.size(), 2u);
+  EXPECT_EQ(p.moves[1].rotary[0], 15.0);
+  EXPECT_EQ(p.moves[1].rotary[2], -90.0);
+  EXPECT_TRUE(p.uses_rotary[0]);
+  EXPECT_FALSE(p.uses_rotary[1]);
+  EXPECT_TRUE(p.uses_rotary[2]);
+}
+
+TEST(Gcode, BadBlocksNameLineAndColumn) {
+  EXPECT_EQ(ErrorOf("G1 X1 F100\nG1 X2 Q5\n"), "p.ngc:2:7: word 'Q' is not supported");
+  EXPECT_NE(ErrorOf("G18\n").find("p.ngc:1:1: G18 is not supported"), std::string::npos);
+  EXPECT_EQ(ErrorOf("G1 X1 F0\n"), "p.ngc:1:7: feed F must be positive, got 0");
+  EXPECT_EQ(ErrorOf("G1 X1\n"), "p.ngc:1:1: a feed move before any feed F was given");
+  EXPECT_EQ(ErrorOf("G0 X10\nG2 X0 Y10 F100\n"),
+            "p.ngc:2:1: an arc (G2/G3) needs I and/or J, or R");
+  EXPECT_NE(ErrorOf("G0 X10\nG3 X0 Y12 I-10 F100\n").find("p.ngc:2:1: arc radius mismatch"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("G0 X10\nG3 X-20 Y0 R5 F100\n").find("less than half the chord"),
+            std::string::npos);
+  EXPECT_EQ(ErrorOf("X5\n"), "p.ngc:1:1: an axis word before any motion mode (G0, G1, G2, G3)");
+  EXPECT_EQ(ErrorOf("G1 X1 X2 F9\n"), "p.ngc:1:7: X appears twice in the block");
+  EXPECT_EQ(ErrorOf("G1 X F9\n"), "p.ngc:1:4: word 'X' needs a number");
+  EXPECT_EQ(ErrorOf("G1 (open X1\n"), "p.ngc:1:4: unclosed comment '('");
+  EXPECT_EQ(ErrorOf("G1 X1 F9 *\n"),
+            "p.ngc:1:10: expected a word (a letter and a number), got '*'");
+  EXPECT_NE(ErrorOf("M99\n").find("p.ngc:1:1: M99 is not supported"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace dtis::io
