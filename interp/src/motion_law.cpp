@@ -34,23 +34,38 @@ double StopAcceleration(double v, double a, double jerk, double acceleration, do
   return std::min(next, a + jerk * dt);
 }
 
+namespace {
+
+// Stops that take longer than this many periods count as never ending.
+constexpr int kMaxStopPeriods = 200000;
+
+// One period of a stop with acceleration `next`: a velocity within `tiny` of zero is settled to
+// exactly zero (with the acceleration that does it). Returns false when the velocity would turn
+// negative (the stop reverses); v, a and distance are then left as they were.
+bool StopPeriod(double next, double tiny, double dt, double* v, double* a, double* distance) {
+  double v_next = *v + next * dt;
+  if (v_next < -tiny) return false;
+  if (std::abs(v_next) <= tiny) {
+    v_next = 0.0;
+    next = -*v / dt;
+  }
+  *distance += v_next * dt;
+  *v = v_next;
+  *a = next;
+  return true;
+}
+
+}  // namespace
+
 StopDistance StopDistanceBySimulation(double v, double a, double jerk, double acceleration,
                                       double dt) {
   double distance = 0.0;
   int periods = 0;
   const double tiny = 1e-12 * (1.0 + std::abs(v));
   while (v != 0.0 || a != 0.0) {
-    double next = StopAcceleration(v, a, jerk, acceleration, dt);
-    double v_next = v + next * dt;
-    if (v_next < -tiny) return {distance, periods, true};
-    if (std::abs(v_next) <= tiny) {
-      v_next = 0.0;
-      next = -v / dt;
-    }
-    distance += v_next * dt;
-    v = v_next;
-    a = next;
-    if (++periods > 200000) return {std::numeric_limits<double>::infinity(), periods};
+    const double next = StopAcceleration(v, a, jerk, acceleration, dt);
+    if (!StopPeriod(next, tiny, dt, &v, &a, &distance)) return {distance, periods, true};
+    if (++periods > kMaxStopPeriods) return {std::numeric_limits<double>::infinity(), periods};
   }
   return {distance, periods};
 }
@@ -159,17 +174,8 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
       }
     }
     // One period, as the simulation steps it.
-    double chosen = next;
-    double v_next = v + chosen * dt;
-    if (v_next < -tiny) return {distance, periods, true};
-    if (std::abs(v_next) <= tiny) {
-      v_next = 0.0;
-      chosen = -v / dt;
-    }
-    distance += v_next * dt;
-    v = v_next;
-    a = chosen;
-    if (++periods > 200000) return {std::numeric_limits<double>::infinity(), periods};
+    if (!StopPeriod(next, tiny, dt, &v, &a, &distance)) return {distance, periods, true};
+    if (++periods > kMaxStopPeriods) return {std::numeric_limits<double>::infinity(), periods};
   }
   return {distance, periods};
 }

@@ -174,10 +174,18 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   return EvalStatus::kOk;
 }
 
-int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
-                              const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
-                              double anchor_guide_t) const {
-  const double limit = std::max(4.0 * chord, options.max_step_mm);
+int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* anchor_tangent,
+                         double target, double anchor_guide_t, Eigen::Vector2d uv,
+                         const NewtonOptions& options, ContactPoint* out,
+                         EvalStatus* status) const {
+  // F1 = g; F2 = m - target, with m the chord |tip - anchor|, or with an anchor tangent the arc
+  // from the chord and the two tangents. The Jacobian of the arc is the chord's scaled by
+  // arc / chord: it leaves out how the tangents' angle moves, a relative term of order
+  // theta^2 / 12, so the iteration still converges at once.
+  const double limit = std::max(4.0 * target, options.max_step_mm);
+  // A chord solve that runs out of iterations may stand within the tolerance; an arc solve must
+  // meet its arc tightly (summed arcs must agree, see NewtonOptions::arc_tolerance_mm).
+  const double f2_at_worst = anchor_tangent ? options.arc_tolerance_mm : options.tolerance_mm;
   double hint = anchor_guide_t;
   for (int it = 0;; ++it) {
     *status = Evaluate(uv, out, hint);
@@ -185,16 +193,20 @@ int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen
     hint = out->guide_t;
     const Eigen::Vector3d d = out->tip - anchor;
     const double dist = d.norm();
-    const double f1 = out->g, f2 = dist - chord;
-    // As in SolveArc: as far as Newton goes cheaply, the tolerance at worst.
-    const double tight = options.arc_tolerance_mm;
-    if (std::abs(f1) <= tight && std::abs(f2) <= tight) return it;
+    const double m = anchor_tangent ? ArcFromChord(dist, *anchor_tangent, out->tangent) : dist;
+    const double f1 = out->g, f2 = m - target;
+    // Converge as far as Newton goes cheaply: poses that sit anywhere within the tolerance would
+    // jitter from one setpoint to the next by up to twice it, which the axis jerk sees (a period's
+    // jerk budget is J dt^3, 5e-6 mm at 5 m/s^3 and 1 ms). The tolerance is what must hold.
+    if (std::abs(f1) <= options.arc_tolerance_mm && std::abs(f2) <= options.arc_tolerance_mm) {
+      return it;
+    }
     if (it == options.max_iterations || !(dist > 0.0)) {
-      return std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= options.tolerance_mm ? it : -1;
+      return std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= f2_at_worst ? it : -1;
     }
     Eigen::Matrix2d j;
     j.row(0) = out->dg.transpose();
-    j.row(1) = (d.transpose() * out->dtip) / dist;
+    j.row(1) = (d.transpose() * out->dtip) * (m / (dist * dist));
     const double det = j.determinant();
     if (!(std::abs(det) > 1e-300)) return -1;
     Eigen::Vector2d step = -j.inverse() * Eigen::Vector2d(f1, f2);
@@ -204,43 +216,16 @@ int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen
   }
 }
 
+int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
+                              const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
+                              double anchor_guide_t) const {
+  return Solve(anchor, nullptr, chord, anchor_guide_t, uv, options, out, status);
+}
+
 int PassEvaluator::SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
                             const NewtonOptions& options, ContactPoint* out,
                             EvalStatus* status) const {
-  // F1 = g, F2 = arc(from, uv) - |delta|, with the arc from the chord and the two tangents. The
-  // Jacobian of F2 is the chord's scaled by arc / chord: it leaves out how the tangents' angle
-  // moves, a relative term of order theta^2 / 12, so the iteration still converges at once.
-  const double target = std::abs(delta);
-  const double limit = std::max(4.0 * target, options.max_step_mm);
-  double hint = from.guide_t;
-  for (int it = 0;; ++it) {
-    *status = Evaluate(uv, out, hint);
-    if (*status != EvalStatus::kOk) return -1;
-    hint = out->guide_t;
-    const Eigen::Vector3d d = out->tip - from.tip;
-    const double dist = d.norm();
-    const double arc = ArcFromChord(dist, from.tangent, out->tangent);
-    const double f1 = out->g, f2 = arc - target;
-    // Converge as far as Newton goes cheaply: poses that sit anywhere within the tolerance would
-    // jitter from one setpoint to the next by up to twice it, which the axis jerk sees (a period's
-    // jerk budget is J dt^3, 5e-6 mm at 5 m/s^3 and 1 ms). The tolerance is what must hold.
-    if (std::abs(f1) <= options.arc_tolerance_mm && std::abs(f2) <= options.arc_tolerance_mm) {
-      return it;
-    }
-    if (it == options.max_iterations || !(dist > 0.0)) {
-      return std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= options.arc_tolerance_mm ? it
-                                                                                              : -1;
-    }
-    Eigen::Matrix2d j;
-    j.row(0) = out->dg.transpose();
-    j.row(1) = (d.transpose() * out->dtip) * (arc / (dist * dist));
-    const double det = j.determinant();
-    if (!(std::abs(det) > 1e-300)) return -1;
-    Eigen::Vector2d step = -j.inverse() * Eigen::Vector2d(f1, f2);
-    const double move = (out->dtip * step).norm();
-    if (move > limit) step *= limit / move;
-    uv += step;
-  }
+  return Solve(from.tip, &from.tangent, std::abs(delta), from.guide_t, uv, options, out, status);
 }
 
 bool PassEvaluator::Step(const ContactPoint& from, double delta, const NewtonOptions& options,

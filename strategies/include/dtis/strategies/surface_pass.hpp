@@ -125,6 +125,12 @@ class PassEvaluator {
   Orientation orientation_;
   int side_;
   PassConstraint constraint_;
+
+  // The Newton loop of SolveChord and SolveArc: g = 0 and the chord (anchor_tangent null) or the
+  // arc from the anchor equal to target.
+  int Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* anchor_tangent, double target,
+            double anchor_guide_t, Eigen::Vector2d uv, const NewtonOptions& options,
+            ContactPoint* out, EvalStatus* status) const;
 };
 
 // The parameter of the point of `guide` closest to (x, y) in XY, by Newton from `hint` (NaN: from
