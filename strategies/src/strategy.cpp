@@ -80,17 +80,25 @@ class Builder {
     if (spec_.side == StrategySpec::Side::kReversed) return -FaceSign();
     double up = 0.0;
     geometry::SurfaceDerivatives d;
-    for (int i = 0; i <= 16; ++i) {
-      for (int j = 0; j <= 16; ++j) {
-        const double u = face_.U0() + (face_.U1() - face_.U0()) * i / 16.0;
-        const double v = face_.V0() + (face_.V1() - face_.V0()) * j / 16.0;
-        if (!face_.Inside(u, v)) continue;
-        face_.D2(u, v, &d);
-        const Eigen::Vector3d n = d.su.cross(d.sv);
-        if (n.norm() > 0.0) up += n.z() / n.norm();
+    ForGrid(16, true, [&](const Eigen::Vector2d& uv) {
+      face_.D2(uv.x(), uv.y(), &d);
+      const Eigen::Vector3d n = d.su.cross(d.sv);
+      if (n.norm() > 0.0) up += n.z() / n.norm();
+    });
+    return up >= 0.0 ? 1 : -1;
+  }
+
+  // Calls visit(uv) at the (n + 1)^2 points of a regular grid over the face's UV box; with
+  // inside_only, only at those in its (trimmed) domain.
+  template <typename Visit>
+  void ForGrid(int n, bool inside_only, Visit&& visit) const {
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; j <= n; ++j) {
+        const Eigen::Vector2d uv(face_.U0() + (face_.U1() - face_.U0()) * i / n,
+                                 face_.V0() + (face_.V1() - face_.V0()) * j / n);
+        if (!inside_only || face_.Inside(uv.x(), uv.y())) visit(uv);
       }
     }
-    return up >= 0.0 ? 1 : -1;
   }
 
   // Plane strategies and leading_line choose the feed's orientation; uv lines have their own.
@@ -101,20 +109,6 @@ class Builder {
   double Along(const Candidate& c, const Eigen::Vector3d& direction) const {
     if (IsGuide()) return c.end.guide_t - c.start.guide_t;
     return IsPlane() ? (c.end.tip - c.start.tip).dot(direction) : 1.0;
-  }
-
-  // Evaluates with the feed oriented along the line's travel at this point (plane strategies:
-  // the sign of unit(n x normal) that goes along `direction`).
-  EvalStatus EvaluateOriented(PassConstraint* c, const Eigen::Vector3d& direction,
-                              const Eigen::Vector2d& uv, ContactPoint* out) const {
-    PassEvaluator e(face_, tool_, orientation_, side_, *c);
-    EvalStatus st = e.Evaluate(uv, out);
-    if (st == EvalStatus::kOk && IsPlane() && !IsGuide() && out->feed.dot(direction) < 0.0) {
-      c->feed_sign = -c->feed_sign;
-      PassEvaluator flipped(face_, tool_, orientation_, side_, *c);
-      st = flipped.Evaluate(uv, out);
-    }
-    return st;
   }
 
   std::string ExtentText() const {
@@ -138,21 +132,24 @@ class Builder {
       lo_ = INFINITY, hi_ = -INFINITY;
       ContactPoint c;
       EvalStatus why = EvalStatus::kOk;
-      for (int i = 0; i <= 40; ++i) {
-        for (int j = 0; j <= 40; ++j) {
-          const Eigen::Vector2d uv(face_.U0() + (face_.U1() - face_.U0()) * i / 40.0,
-                                   face_.V0() + (face_.V1() - face_.V0()) * j / 40.0);
-          if (!face_.Inside(uv.x(), uv.y())) continue;
-          PassConstraint probe = base;
-          const EvalStatus st = EvaluateOriented(&probe, spec_.direction, uv, &c);
-          if (st != EvalStatus::kOk) {
-            why = st;
-            continue;
-          }
-          lo_ = std::min(lo_, c.g);
-          hi_ = std::max(hi_, c.g);
+      // Both feed orientations built once: a PassEvaluator copies the face (and its classifier).
+      PassConstraint flipped = base;
+      flipped.feed_sign = -base.feed_sign;
+      const PassEvaluator along(face_, tool_, orientation_, side_, base);
+      const PassEvaluator against(face_, tool_, orientation_, side_, flipped);
+      ForGrid(40, true, [&](const Eigen::Vector2d& uv) {
+        // The feed oriented along `direction` at this point (a tilted tip depends on it).
+        EvalStatus st = along.Evaluate(uv, &c);
+        if (st == EvalStatus::kOk && !IsGuide() && c.feed.dot(spec_.direction) < 0.0) {
+          st = against.Evaluate(uv, &c);
         }
-      }
+        if (st != EvalStatus::kOk) {
+          why = st;
+          return;
+        }
+        lo_ = std::min(lo_, c.g);
+        hi_ = std::max(hi_, c.g);
+      });
       if (!(lo_ <= hi_)) {
         throw Error("{}: no point of the face gives a cutter location: {}", face_.Where(),
                     EvalStatusText(why));
@@ -165,15 +162,11 @@ class Builder {
       double sum = 0.0;
       int count = 0;
       geometry::SurfaceDerivatives d;
-      for (int i = 0; i <= 16; ++i) {
-        for (int j = 0; j <= 16; ++j) {
-          const double u = face_.U0() + (face_.U1() - face_.U0()) * i / 16.0;
-          const double v = face_.V0() + (face_.V1() - face_.V0()) * j / 16.0;
-          face_.D2(u, v, &d);
-          sum += (spec_.along_u ? d.sv : d.su).norm();
-          ++count;
-        }
-      }
+      ForGrid(16, false, [&](const Eigen::Vector2d& uv) {
+        face_.D2(uv.x(), uv.y(), &d);
+        sum += (spec_.along_u ? d.sv : d.su).norm();
+        ++count;
+      });
       base.iso_scale = sum / count;
       if (!(base.iso_scale > 0.0)) throw Error("{}: the face is degenerate", face_.Where());
       step = stepover / base.iso_scale;
@@ -186,7 +179,8 @@ class Builder {
       }
     } else if (IsGuide()) {
       // The guide itself, then offsets by whole stepovers to both sides, over the face.
-      for (long k = static_cast<long>(std::ceil(lo_ / step)); k * step <= hi_; ++k) {
+      for (long k = static_cast<long>(std::ceil(lo_ / step)); static_cast<double>(k) * step <= hi_;
+           ++k) {
         values.push_back(static_cast<double>(k) * step);
       }
     } else {
