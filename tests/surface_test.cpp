@@ -391,7 +391,9 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
         st = smp.state;
         if (s >= length) break;
       }
-      if (!early) EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
+      if (!early) {
+        EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
+      }
     }
   }
   EXPECT_GT(built, 0);

@@ -26,27 +26,33 @@ namespace {
 Eigen::Vector3d V(const gp_Pnt& p) { return {p.X(), p.Y(), p.Z()}; }
 Eigen::Vector3d V(const gp_Vec& p) { return {p.X(), p.Y(), p.Z()}; }
 
-bool IsRectangle(const TopoDS_Face& face, double u0, double u1, double v0, double v1) {
+}  // namespace
+
+bool BoundedByBox(const TopoDS_Face& face, double u0, double u1, double v0, double v1,
+                  double tol_fraction, int intervals_per_edge) {
   int wires = 0;
   for (TopExp_Explorer w(face, TopAbs_WIRE); w.More(); w.Next()) ++wires;
   if (wires != 1) return false;
-  const double tol = 1e-9 * std::max({1.0, u1 - u0, v1 - v0});
+  const double tol = tol_fraction * std::max({1.0, u1 - u0, v1 - v0});
+  const auto at = [tol](double x, double a, double b) {
+    return std::abs(x - a) < tol || std::abs(x - b) < tol;
+  };
   for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
     double f = 0, l = 0;
     const Handle(Geom2d_Curve) pc =
         BRep_Tool::CurveOnSurface(TopoDS::Edge(e.Current()), face, f, l);
     if (pc.IsNull()) return false;
-    const gp_Pnt2d a = pc->Value(f), m = pc->Value(0.5 * (f + l)), b = pc->Value(l);
-    const auto iso = [tol](double x, double y, double z, double lo, double hi) {
-      return std::abs(x - y) < tol && std::abs(y - z) < tol &&
-             (std::abs(x - lo) < tol || std::abs(x - hi) < tol);
-    };
-    if (!iso(a.X(), m.X(), b.X(), u0, u1) && !iso(a.Y(), m.Y(), b.Y(), v0, v1)) return false;
+    const gp_Pnt2d first = pc->Value(f);
+    bool on_u = true, on_v = true;
+    for (int k = 1; k <= intervals_per_edge; ++k) {
+      const gp_Pnt2d p = pc->Value(f + (l - f) * k / intervals_per_edge);
+      on_u = on_u && std::abs(p.X() - first.X()) < tol;
+      on_v = on_v && std::abs(p.Y() - first.Y()) < tol;
+    }
+    if (!(on_u && at(first.X(), u0, u1)) && !(on_v && at(first.Y(), v0, v1))) return false;
   }
   return true;
 }
-
-}  // namespace
 
 TopoDS_Face PlaceFace(const TopoDS_Face& face, const Eigen::Vector3d& rotate_deg,
                       const Eigen::Vector3d& translate_mm) {
@@ -80,7 +86,7 @@ FaceSurface::FaceSurface(const TopoDS_Face& face, std::string where)
   surface_.Load(s);
   BRepTools::UVBounds(face_, u0_, u1_, v0_, v1_);
   // The domain is the UV box unless the face's boundary is not that box's four sides.
-  trimmed_ = !IsRectangle(face_, u0_, u1_, v0_, v1_);
+  trimmed_ = !BoundedByBox(face_, u0_, u1_, v0_, v1_, 1e-9, 2);
   if (trimmed_) {
     const double tol = 1e-9 * std::max({1.0, u1_ - u0_, v1_ - v0_});
     classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);

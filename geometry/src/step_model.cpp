@@ -5,18 +5,13 @@
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepBndLib.hxx>
 #include <BRepTools.hxx>
-#include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
-#include <Geom2dAdaptor_Curve.hxx>
-#include <Geom2d_Curve.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Reader.hxx>
 #include <Standard_Failure.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
-#include <TopoDS_Edge.hxx>
-#include <TopoDS_Wire.hxx>
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -26,6 +21,7 @@
 #include <mutex>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/face_surface.hpp"
 
 namespace dtis::geometry {
 namespace {
@@ -90,35 +86,13 @@ const char* SurfaceTypeName(GeomAbs_SurfaceType type) {
 // A face is untrimmed when its only wire runs along the surface's natural parameter rectangle:
 // every edge's pcurve is an iso-line at a bound of the surface.
 bool IsTrimmed(const TopoDS_Face& face, const BRepAdaptor_Surface& s) {
-  int wires = 0;
-  for (TopExp_Explorer w(face, TopAbs_WIRE); w.More(); w.Next()) ++wires;
-  if (wires != 1) return true;
   const double su0 = s.FirstUParameter(), su1 = s.LastUParameter();
   const double sv0 = s.FirstVParameter(), sv1 = s.LastVParameter();
   if (!std::isfinite(su0) || !std::isfinite(su1) || std::abs(su0) > 1e50 || std::abs(su1) > 1e50 ||
       std::abs(sv0) > 1e50 || std::abs(sv1) > 1e50) {
     return true;  // an infinite analytic surface is always bounded by a trim
   }
-  const double tol = 1e-7 * std::max({1.0, su1 - su0, sv1 - sv0});
-  for (TopExp_Explorer e(face, TopAbs_EDGE); e.More(); e.Next()) {
-    const TopoDS_Edge& edge = TopoDS::Edge(e.Current());
-    double f = 0, l = 0;
-    const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(edge, face, f, l);
-    if (pc.IsNull()) return true;
-    bool on_u = true, on_v = true;
-    double u_first = 0, v_first = 0;
-    for (int k = 0; k <= 8; ++k) {
-      const gp_Pnt2d p = pc->Value(f + (l - f) * k / 8.0);
-      if (k == 0) u_first = p.X(), v_first = p.Y();
-      on_u = on_u && std::abs(p.X() - u_first) < tol;
-      on_v = on_v && std::abs(p.Y() - v_first) < tol;
-    }
-    const auto at = [tol](double x, double a, double b) {
-      return std::abs(x - a) < tol || std::abs(x - b) < tol;
-    };
-    if (!(on_u && at(u_first, su0, su1)) && !(on_v && at(v_first, sv0, sv1))) return true;
-  }
-  return false;
+  return !BoundedByBox(face, su0, su1, sv0, sv1, 1e-7, 8);
 }
 
 FaceInfo Describe(int index, const TopoDS_Face& face) {

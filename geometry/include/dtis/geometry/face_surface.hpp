@@ -25,6 +25,10 @@ struct SurfaceDerivatives {
 // `rotate_deg`, then moved by `translate_mm`.
 TopoDS_Face PlaceFace(const TopoDS_Face& face, const Eigen::Vector3d& rotate_deg,
                       const Eigen::Vector3d& translate_mm);
+// The face has one wire, each edge an iso-line (u or v constant, checked at intervals_per_edge + 1
+// points) on a side of [u0, u1] x [v0, v1], to tol_fraction of the box's size.
+bool BoundedByBox(const TopoDS_Face& face, double u0, double u1, double v0, double v1,
+                  double tol_fraction, int intervals_per_edge);
 // Axis-aligned bounding box of a face (mm): min then max corner.
 std::pair<Eigen::Vector3d, Eigen::Vector3d> FaceBox(const TopoDS_Face& face);
 
