@@ -346,7 +346,7 @@ class Builder {
       }
       // A pass that skims the boundary may leave and re-enter between two steps: look at the
       // middle of the step (cubic Hermite in (u, v)) and, if it is off the face, solve there.
-      double out_chord = Inside(e, next) ? 0.0 : h;
+      double out_chord = e.Inside(next.uv) ? 0.0 : h;
       if (out_chord == 0.0) {
         const Eigen::Vector2d mid = 0.5 * (cur.uv + next.uv) + (cur.duv - next.duv) * (h / 8.0);
         ContactPoint m;
@@ -372,8 +372,6 @@ class Builder {
       h = std::min(full, 2.0 * h);
     }
   }
-
-  static bool Inside(const PassEvaluator& e, const ContactPoint& p) { return e.Inside(p.uv); }
 
   void CheckGouge(const Candidate& cand, const ContactPoint& p, double s) const {
     // Contact above the ball's equator by less than 0.006 deg overlaps the shank by < r 1e-8.
