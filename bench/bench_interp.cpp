@@ -3,8 +3,12 @@
 //   build/bench/dtis_bench --benchmark_filter=Plan
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+
+#include "dtis/interp/program.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/gcode.hpp"
+#include "dtis/io/gcode_program.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/kinematics/machines.hpp"
 
@@ -109,5 +113,45 @@ void GcodeRead(benchmark::State& state) {
       benchmark::Counter(static_cast<double>(blocks), benchmark::Counter::kIsRate);
 }
 BENCHMARK(GcodeRead)->Unit(benchmark::kMillisecond);
+
+// Planning G-code, single thread: corner smoothing and VPOp on the lock sample, and on a
+// 100 000-block program (a wavy line discretized into 0.1 mm G1 blocks, as CAM exports a freeform
+// pass). Setpoints per second and the real-time factor.
+//   build/bench/dtis_bench --benchmark_filter=GcodePlan
+void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
+                 const dtis::io::Job& job) {
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  long setpoints = 0;
+  double motion = 0.0;
+  dtis::interp::ProgramOptions po;
+  po.threads = 1;
+  for (auto _ : state) {
+    const auto plan = dtis::io::BuildGcodePlan(program, *machine, job.vpop, job.path.gcode);
+    const auto result = dtis::interp::PlanProgram(plan.segments, *machine, po);
+    setpoints += static_cast<long>(result.setpoints.size());
+    motion += result.total.motion_time_s;
+  }
+  state.counters["blocks"] = static_cast<double>(program.moves.size());
+  state.counters["setpoints_per_s"] =
+      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
+  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+}
+
+void GcodePlanLock(benchmark::State& state) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
+  GcodePlanOn(state, dtis::io::ReadGcode(job.path.gcode_file), job);
+}
+BENCHMARK(GcodePlanLock)->Unit(benchmark::kMillisecond);
+
+void GcodePlan100k(benchmark::State& state) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
+  std::string text = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 F3000\n";
+  for (int k = 1; k <= 100000; ++k) {
+    const double x = 0.1 * k;
+    text += "X" + std::to_string(x) + " Y" + std::to_string(5.0 * std::sin(x / 20.0)) + "\n";
+  }
+  GcodePlanOn(state, dtis::io::ParseGcode(text, "wave.ngc"), job);
+}
+BENCHMARK(GcodePlan100k)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace

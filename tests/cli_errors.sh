@@ -81,5 +81,22 @@ sed "s#^file = .*#file = \"$parts/occt_bug28366_fuselage_8faces.stp\"#; s/^face 
 expect degenerate "the surface normal is undefined" -- "$dtis" run "$work/nose.toml" -o "$work/out.csv"
 sed "s/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [500, 510]/" "$work/surf.toml" > "$work/miss.toml"
 expect misses "misses the face" -- "$dtis" run "$work/miss.toml" -o "$work/out.csv"
-echo "$((16 - failures)) passed, $failures failed"
+
+# G-code jobs: a bad block names the program's line and column; nothing is written.
+cat > "$work/gcode.toml" <<JOB
+machine = "mikron_ucp710_xyz.toml"
+[path]
+kind = "gcode"
+file = "bad.ngc"
+JOB
+printf 'G0 X0 Y0\nG1 X10 F600\nG2 X20 Y0\n' > "$work/bad.ngc"
+expect gcode-arc "bad.ngc:3:1: an arc (G2/G3) needs I and/or J, or R" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F600 Q3\n' > "$work/bad.ngc"
+expect gcode-word "bad.ngc:2:13: word 'Q' is not supported" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F0\n' > "$work/bad.ngc"
+expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F600 A5\n' > "$work/bad.ngc"
+expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+
+echo "$((20 - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -1,11 +1,13 @@
 // Shared helpers for the tests: the random-suite knobs, sample paths, and an in-memory sink.
 #pragma once
 
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "dtis/interp/vpop.hpp"
+#include "dtis/kinematics/machines.hpp"
 
 namespace dtis::test {
 
@@ -20,5 +22,21 @@ struct Collect final : interp::SetpointSink {
   std::vector<interp::Setpoint> points;
   void Accept(const interp::Setpoint& s) override { points.push_back(s); }
 };
+
+// An XYZ machine with the same limits on every axis (mm, s).
+inline std::unique_ptr<Machine> Cartesian(double v, double a, double j) {
+  std::vector<Axis> axes;
+  for (const char* n : {"X", "Y", "Z"}) {
+    Axis x;
+    x.name = n;
+    x.travel_min = -1000;
+    x.travel_max = 1000;
+    x.vmax = v;
+    x.amax = a;
+    x.jmax = j;
+    axes.push_back(x);
+  }
+  return std::make_unique<kinematics::XyzMachine>("test", axes);
+}
 
 }  // namespace dtis::test

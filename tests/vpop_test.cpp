@@ -19,20 +19,7 @@
 namespace dtis {
 namespace {
 
-std::unique_ptr<Machine> Cartesian(double v, double a, double j) {
-  std::vector<Axis> axes;
-  for (const char* n : {"X", "Y", "Z"}) {
-    Axis x;
-    x.name = n;
-    x.travel_min = -1000;
-    x.travel_max = 1000;
-    x.vmax = v;
-    x.amax = a;
-    x.jmax = j;
-    axes.push_back(x);
-  }
-  return std::make_unique<kinematics::XyzMachine>("test", axes);
-}
+using test::Cartesian;
 
 struct Planned {
   interp::VpopSummary summary;

@@ -27,6 +27,8 @@ const char* LimiterName(Limiter limiter) {
       return "feed_look_ahead";
     case Limiter::kEndLookAhead:
       return "end_look_ahead";
+    case Limiter::kSlowPointLookAhead:
+      return "slow_point_look_ahead";
     case Limiter::kPathEnd:
       return "path_end";
     case Limiter::kAxisVelocity:
@@ -116,6 +118,74 @@ struct Effective {
 // fall strictly inside the axis intervals instead of on their faces (where rounding decides).
 constexpr double kLawMargin = 1.0 - 1e-7;
 
+// A path walked backwards from arc length `end` (its s is end - s of the path): the look-ahead
+// plans away from a slow point on it with the same planner, so that braking for the point is the
+// mirror image of accelerating away from it (Beudaert 2012, §2.5).
+class ReversedPath final : public PathSource {
+ public:
+  ReversedPath(const PathSource& path, double end) : path_(path), end_(end) {}
+  PathState Start() const override {
+    PathState state = path_.At(path_.Start(), end_).state;
+    state.s = 0.0;
+    return state;
+  }
+  std::optional<double> Length() const override { return end_; }
+  PathSample At(const PathState& from, double s) const override {
+    PathState f = from;
+    f.s = end_ - from.s;
+    PathSample x = path_.At(f, std::max(end_ - s, 0.0));
+    if (s > end_) x.status = PathStatus::kEnd;
+    x.state.s = end_ - x.state.s;
+    return x;
+  }
+  std::string Describe(const PathState& state) const override {
+    PathState f = state;
+    f.s = end_ - state.s;
+    return path_.Describe(f);
+  }
+
+ private:
+  const PathSource& path_;
+  double end_;
+};
+
+// Collects the feed of a backward plan as (arc length of the forward path, feed of the forward
+// period that ends there), until the feed stops rising.
+class BackwardCurve final : public SetpointSink {
+ public:
+  BackwardCurve(double end, double feed, double cap, double dt)
+      : end_(end), cap_(cap), dt_(dt), last_s_(0.0) {
+    curve_.push_back({end, feed});
+  }
+  void Accept(const Setpoint& sp) override {
+    if (done_) return;
+    if (sp.index == 0) {
+      last_s_ = sp.s;
+      return;
+    }
+    const double feed = (sp.s - last_s_) / dt_;
+    const double at = end_ - last_s_;
+    last_s_ = sp.s;
+    if (feed <= curve_.back().second) {
+      done_ = true;  // the feed no longer rises: the plan turns to its own end
+      return;
+    }
+    curve_.push_back({at, feed});
+    if (feed >= cap_ * (1.0 - 1e-9)) done_ = true;
+  }
+  bool Done() const override { return done_; }
+  // Ascending in arc length.
+  std::vector<std::pair<double, double>> Take() {
+    std::reverse(curve_.begin(), curve_.end());
+    return std::move(curve_);
+  }
+
+ private:
+  double end_, cap_, dt_, last_s_;
+  bool done_ = false;
+  std::vector<std::pair<double, double>> curve_;
+};
+
 class Planner {
  public:
   Planner(const PathSource& path, const Machine& machine, const VpopOptions& options,
@@ -170,7 +240,11 @@ class Planner {
   bool MakeBox(const History& h, Box* box) const;
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Direction(const History& h);
   Effective Available(const History& h, const Box& box, const Interval& t);
-  std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e) const;
+  std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e);
+  // The backward limit of slow point k (nullptr when it could not be planned).
+  const std::vector<std::pair<double, double>>* SlowCurve(std::size_t k, const Step& near);
+  double ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
+                  double feed) const;
   bool Solve(const History& h, const Box& box, double lo, double hi, double target, Step* out,
              LimiterId* by);
   enum class Mode { kGreedy, kBrake };
@@ -208,6 +282,8 @@ class Planner {
   long hint_ = 0;       // latest step whose brake law got past the last failure (>= safe_)
   VpopSummary summary_;
   double last_stuck_s_ = -1.0;
+  // Per slow point: not planned yet, planned (ascending (s, feed)), or failed (empty).
+  std::vector<std::optional<std::vector<std::pair<double, double>>>> curves_;
   int stuck_count_ = 0;
 };
 
@@ -372,84 +448,154 @@ Effective Planner::Available(const History& h, const Box& box, const Interval& t
   return e;
 }
 
-// The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, and stop
-// at the end of the path.
-std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e) const {
+// The largest next acceleration in [lo, a_hi] from which the stop law brings the feed down to
+// `feed` (with zero acceleration) no later than arc length `at`: the end of the path (feed 0) or
+// a slow point. The law for the feed's excess over `feed` is the stop law, so the distance is the
+// stop distance of the excess plus `feed` times its periods. Returns a_hi when it already does, lo
+// when even lo does not.
+double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
+                         double feed) const {
+  const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
+  const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
+  const double release_jerk = jerk * kReleaseJerkFraction;
+  const auto reach = [&](double a) {
+    const double v = v0 + a * dt_;
+    const double excess = v - feed;
+    if (v < 0.0 || excess + ReleaseGain(a, release_jerk, dt_) <= 0.0) {
+      return -std::numeric_limits<double>::infinity();  // never above the feed: no constraint
+    }
+    // Planned with the softer law, so that following it leaves headroom for rounding. A state
+    // braked too hard counts as short of the point (monotone in a: more braking, less reach).
+    const StopDistance stop = StopDistanceFrom(std::max(excess, 0.0), a, release_jerk,
+                                               acceleration * kReleaseJerkFraction, dt_);
+    return stop.reverses ? -std::numeric_limits<double>::infinity()
+                         : s0 + v * dt_ + stop.distance + feed * stop.periods * dt_;
+  };
+  double hi = a_hi, f_hi = reach(hi) - at;
+  if (!(f_hi > 0.0)) return a_hi;
+  double lo = std::max({a0 - jerk * dt_, -acceleration, -v0 / dt_});
+  double f_lo = reach(lo) - at;
+  if (f_lo > 0.0) return lo;  // cannot arrive in time even braking hardest: brake hardest
+  // Braking to the point follows the stop law, so its next acceleration is nearly the answer:
+  // bracket it tightly before the search (a few evaluations instead of dozens).
+  const double guess = StopAcceleration(std::max(v0 - feed, 0.0), a0, release_jerk,
+                                        acceleration * kReleaseJerkFraction, dt_);
+  const double delta = 1e-7 * (std::abs(guess) + jerk * dt_);
+  for (const double g : {guess, guess - delta, guess + delta}) {
+    if (!(g > lo && g < hi)) continue;
+    const double f_g = reach(g) - at;
+    if (f_g <= 0.0) {
+      lo = g, f_lo = f_g;
+    } else {
+      hi = g, f_hi = f_g;
+    }
+  }
+  // The largest a with reach(a) <= at: Illinois regula falsi, bisection where reach is -inf. There,
+  // an acceleration known to 1e-9 of the law's jerk step moves positions by far less than their
+  // rounding: stop there.
+  int side = 0;
+  const auto tight = [&] {
+    return std::isfinite(f_lo) ? 1e-12 * (1.0 + std::abs(hi)) : 1e-9 * (std::abs(hi) + jerk * dt_);
+  };
+  for (int k = 0; k < 60 && hi - lo > tight(); ++k) {
+    double mid = std::isfinite(f_lo) ? lo + (hi - lo) * (-f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
+    if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
+    const double f_mid = reach(mid) - at;
+    if (f_mid <= 0.0) {
+      lo = mid, f_lo = f_mid;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = mid, f_hi = f_mid;
+      if (side == 1 && std::isfinite(f_lo)) f_lo *= 0.5;
+      side = 1;
+    }
+    if (f_lo > -1e-12 && f_lo <= 0.0) break;
+  }
+  return lo;
+}
+
+// The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, pass the
+// path's slow points no faster than their feed, and stop at the end of the path.
+const std::vector<std::pair<double, double>>* Planner::SlowCurve(std::size_t k, const Step& near) {
+  const auto slow = path_.SlowPoints();
+  if (curves_.size() != slow.size()) curves_.assign(slow.size(), std::nullopt);
+  auto& curve = curves_[k];
+  if (!curve) {
+    const SlowPoint& point = slow[k];
+    VpopOptions o = o_;
+    o.start_feed_mm_s = std::min(point.feed_mm_s, o_.feed_mm_s);
+    o.commit_horizon = 64;
+    o.previous_q = near.q;
+    const ReversedPath reversed(path_, point.s);
+    BackwardCurve sink(point.s, o.start_feed_mm_s, o_.feed_mm_s, dt_);
+    try {
+      Planner backward(reversed, machine_, o, sink);
+      const VpopSummary done = backward.Run();
+      summary_.evaluations += done.evaluations;
+      curve = sink.Take();
+    } catch (const Error&) {
+      curve.emplace();  // the law alone then brakes for this point
+    }
+  }
+  return curve->empty() ? nullptr : &*curve;
+}
+
+std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e) {
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
   const double jerk = e.jerk * kLawMargin, acceleration = e.acceleration * kLawMargin;
   double a_hi =
       std::min(MaxAccelerationUnderCap(v0, e.feed, jerk * kReleaseJerkFraction, dt_), acceleration);
   LimiterId by{Limiter::kFeedLookAhead, -1};
-  if (length_) {
-    // Skip the stop simulation while the end is farther than any stop from the fastest next state.
-    const double a_pos = std::clamp(a_hi, 0.0, std::max(a0, 0.0) + jerk * dt_);
-    const double v_top = v0 + a_pos * dt_ + ReleaseGain(a_pos, jerk, dt_);
-    const double t_stop =
-        v_top / acceleration + 2.0 * std::sqrt(v_top / jerk) + a_pos / jerk + 4.0 * dt_;
-    if (s0 + v_top * (t_stop + dt_) >= *length_) {
-      const auto reach = [&](double a) {
-        const double v = v0 + a * dt_;
-        if (v < 0.0) return -std::numeric_limits<double>::infinity();
-        // Planned with the softer law, so that following it leaves headroom for rounding. A state
-        // braked too hard counts as short of the end (monotone in a: more braking, less reach).
-        const StopDistance stop = StopDistanceFrom(v, a, jerk * kReleaseJerkFraction,
-                                                   acceleration * kReleaseJerkFraction, dt_);
-        return stop.reverses ? -std::numeric_limits<double>::infinity()
-                             : s0 + v * dt_ + stop.distance;
-      };
-      double hi = a_hi, f_hi = reach(hi) - *length_;
-      if (f_hi > 0.0) {
-        double lo = std::max({a0 - jerk * dt_, -acceleration, -v0 / dt_});
-        double f_lo = reach(lo) - *length_;
-        if (f_lo > 0.0) {
-          a_hi = lo;  // cannot stop in time even braking hardest: brake hardest
-        } else {
-          // Braking to the end follows the stop law, so its next acceleration is nearly the
-          // answer: bracket it tightly before the search (a few evaluations instead of dozens).
-          const double guess = StopAcceleration(v0, a0, jerk * kReleaseJerkFraction,
-                                                acceleration * kReleaseJerkFraction, dt_);
-          const double delta = 1e-7 * (std::abs(guess) + jerk * dt_);
-          for (const double g : {guess, guess - delta, guess + delta}) {
-            if (!(g > lo && g < hi)) continue;
-            const double f_g = reach(g) - *length_;
-            if (f_g <= 0.0) {
-              lo = g, f_lo = f_g;
-            } else {
-              hi = g, f_hi = f_g;
-            }
-          }
-          // The largest a with reach(a) <= L: Illinois regula falsi, bisection where reach is -inf.
-          int side = 0;
-          // Where reach is -inf (the stop would reverse), an acceleration known to 1e-9 of the
-          // law's jerk step moves positions by far less than their rounding: stop there.
-          const auto tight = [&] {
-            return std::isfinite(f_lo) ? 1e-12 * (1.0 + std::abs(hi))
-                                       : 1e-9 * (std::abs(hi) + jerk * dt_);
-          };
-          for (int k = 0; k < 60 && hi - lo > tight(); ++k) {
-            double mid =
-                std::isfinite(f_lo) ? lo + (hi - lo) * (-f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
-            if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
-            const double f_mid = reach(mid) - *length_;
-            if (f_mid <= 0.0) {
-              lo = mid, f_lo = f_mid;
-              if (side == -1) f_hi *= 0.5;
-              side = -1;
-            } else {
-              hi = mid, f_hi = f_mid;
-              if (side == 1 && std::isfinite(f_lo)) f_lo *= 0.5;
-              side = 1;
-            }
-            if (f_lo > -1e-12 && f_lo <= 0.0) break;
-          }
-          a_hi = lo;
-        }
-        by = {Limiter::kEndLookAhead, -1};
-      }
+  // Skip the stop laws for points farther than any stop from the fastest next state.
+  const double a_pos = std::clamp(a_hi, 0.0, std::max(a0, 0.0) + jerk * dt_);
+  const double v_top = v0 + a_pos * dt_ + ReleaseGain(a_pos, jerk, dt_);
+  const double t_stop =
+      v_top / acceleration + 2.0 * std::sqrt(v_top / jerk) + a_pos / jerk + 4.0 * dt_;
+  const double horizon = s0 + v_top * (t_stop + dt_);
+  // Slow points: the backward limit, the mirror image of accelerating away from the point, is
+  // one more bound on the next step (the step may not be faster than the limit where it ends);
+  // where it could not be planned, the stop law brakes for the point instead.
+  double curve_target = INFINITY;
+  const auto slow = path_.SlowPoints();
+  const double reach = s0 + 2.0 * (horizon - s0) + o_.feed_mm_s * dt_;
+  for (auto it = std::upper_bound(slow.begin(), slow.end(), s0,
+                                  [](double s, const SlowPoint&p) { return s < p.s; });
+       it != slow.end() && it->s < reach; ++it) {
+    if (length_ && it->s >= *length_) break;
+    const auto* curve = SlowCurve(static_cast<std::size_t>(it - slow.begin()), *h.p0);
+    if (!curve) {
+      if (it->s >= horizon) continue;
+      const double a = ArriveBy(h, a_hi, jerk, acceleration, it->s, it->feed_mm_s);
+      if (a < a_hi) a_hi = a, by = {Limiter::kSlowPointLookAhead, -1};
+      continue;
     }
+    const auto limit = [curve](double s) {  // the feed allowed for a period ending at s
+      if (s <= curve->front().first) return std::numeric_limits<double>::infinity();
+      if (s >= curve->back().first) return curve->back().second;
+      const auto hi = std::upper_bound(
+          curve->begin(), curve->end(), s,
+          [](double x, const std::pair<double, double>& p) { return x < p.first; });
+      const auto lo = hi - 1;
+      const double t = (s - lo->first) / (hi->first - lo->first);
+      return lo->second + t * (hi->second - lo->second);
+    };
+    double lo = s0, hi = s0 + o_.feed_mm_s * dt_;
+    if (hi - s0 <= limit(hi) * dt_) continue;
+    for (int k = 0; k < 60 && hi - lo > 1e-13 * (1.0 + std::abs(hi)); ++k) {
+      const double mid = 0.5 * (lo + hi);
+      (mid - s0 <= limit(mid) * dt_ ? lo : hi) = mid;
+    }
+    curve_target = std::min(curve_target, lo);
   }
-  return {s0 + (v0 + a_hi * dt_) * dt_, by};
+  if (length_ && horizon >= *length_) {
+    const double a = ArriveBy(h, a_hi, jerk, acceleration, *length_, 0.0);
+    if (a < a_hi) a_hi = a, by = {Limiter::kEndLookAhead, -1};
+  }
+  const double target = s0 + (v0 + a_hi * dt_) * dt_;
+  if (curve_target < target) return {curve_target, {Limiter::kSlowPointLookAhead, -1}};
+  return {target, by};
 }
 
 // The feasible s in [lo, hi] nearest to `target`, found with exact evaluations: a linear model of
@@ -753,6 +899,18 @@ VpopSummary Planner::Run() {
       machine_.Inverse(s0.pose, o_.previous_q ? &*o_.previous_q : nullptr, &start.q);
   if (r.status != InverseStatus::kOk) FailAt(start, DescribeInverseFailure(machine_, r));
   start.limiter = {Limiter::kStart, -1};
+  if (o_.start_feed_mm_s > 0.0) {
+    // The two periods before the start, on the path behind it, at the start feed.
+    for (const int k : {2, 1}) {
+      Step behind;
+      Evaluate(start, -k * o_.start_feed_mm_s * dt_, &behind);
+      behind.s = -k * o_.start_feed_mm_s * dt_;
+      behind.limiter = start.limiter;
+      steps_.push_back(behind);
+    }
+    base_ = -2;
+    committed_ = 0;
+  }
   steps_.push_back(start);
   const long check_every =
       static_cast<long>(std::min<std::size_t>(o_.commit_horizon / 4, 1L << 40));
@@ -778,6 +936,7 @@ VpopSummary Planner::Run() {
         }
       }
       Commit(std::min(safe_, Last() - static_cast<long>(o_.commit_horizon) / 2));
+      if (sink_.Done()) return summary_;
     }
   }
   // Two more periods at rest so that a reader sees zero velocity and acceleration at the end.

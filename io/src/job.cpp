@@ -24,7 +24,29 @@ namespace {
 void ReadPath(TomlTable& root, Job* out) {
   Job& job = *out;
   TomlTable path = root.Table("path");
-  const std::string kind = path.Choice("kind", {"line", "curve"});
+  const std::string kind = path.Choice("kind", {"line", "curve", "gcode"});
+  if (kind == "gcode") {
+    job.path.kind = PathSpec::Kind::kGcode;
+    job.path.gcode_file = ResolveRelative(job.file, path.String("file"));
+    geometry::CornerOptions& c = job.path.gcode.corners;
+    if (auto e = path.OptionalPositiveNumber("contour_tol_mm")) c.contour_tol_mm = *e;
+    if (auto e = path.OptionalPositiveNumber("orientation_tol_mm")) c.orientation_tol_mm = *e;
+    if (auto h = path.OptionalPositiveNumber("top_height_mm")) c.top_height_mm = *h;
+    if (auto p = path.OptionalChoice("top_parametrization",
+                                     {"c2", "bottom_parameter", "uniform", "top_arc_length"})) {
+      using T = geometry::TopParametrization;
+      c.top = *p == "c2"                 ? T::kC2
+              : *p == "bottom_parameter" ? T::kBottomParameter
+              : *p == "uniform"          ? T::kUniform
+                                         : T::kTopArcLength;
+    }
+    if (auto r = path.OptionalPositiveNumber("rapid_feed_mm_min")) {
+      job.path.gcode.rapid_feed_mm_s = *r / 60.0;
+    }
+    if (path.Has("tool_axis")) path.Fail("tool_axis", "a G-code program sets its own tool axis");
+    path.RejectUnknown();
+    return;
+  }
   if (kind == "line") {
     job.path.kind = PathSpec::Kind::kLine;
     job.path.from = path.Point("from");
@@ -182,13 +204,19 @@ Job ReadJob(TomlTable& root) {
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
   const double period_ms = root.OptionalPositiveNumber("period_ms").value_or(1.0);
   job.vpop.period_s = period_ms * 1e-3;
-  job.vpop.feed_mm_s = root.PositiveNumber("feed_mm_min") / 60.0;
-
+  const std::optional<double> feed = root.OptionalPositiveNumber("feed_mm_min");
   if (root.Has("surface")) {
     if (root.Has("path")) root.Fail("path", "a job has either [path] or [surface], not both");
     job.surface = ReadSurface(root, job.file);
   } else {
     ReadPath(root, &job);
+  }
+  if (job.path.kind == PathSpec::Kind::kGcode && !job.surface) {
+    // The program's F words rule; feed_mm_min, if given, caps them (a feed override).
+    if (feed) job.path.gcode.max_feed_mm_s = *feed / 60.0;
+    job.vpop.feed_mm_s = 1.0;  // per segment; this only satisfies the options' check
+  } else {
+    job.vpop.feed_mm_s = (feed ? *feed : root.PositiveNumber("feed_mm_min")) / 60.0;
   }
 
   if (auto t = root.OptionalTable("tangential")) {
@@ -257,6 +285,9 @@ Job LoadJob(const std::string& path) {
 
 std::unique_ptr<PathSource> BuildPath(const Job& job) {
   if (job.surface) throw Error("{}: a surface job has several paths (passes)", job.file);
+  if (job.path.kind == PathSpec::Kind::kGcode) {
+    throw Error("{}: a G-code job has several paths (one per contour)", job.file);
+  }
   if (job.path.kind == PathSpec::Kind::kLine) {
     return std::make_unique<geometry::LinePath>(job.path.from, job.path.to, job.path.tool_axis);
   }
@@ -369,9 +400,49 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
 
 }  // namespace
 
+namespace {
+
+// A G-code program: its contours and rapids planned as one program.
+void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
+  if (job.interpolator != InterpolatorKind::kVpop) {
+    throw Error("{}: G-code jobs run with the VPOp interpolator only", job.file);
+  }
+  const GcodeProgram program = ReadGcode(job.path.gcode_file);
+  r->blocks = static_cast<int>(program.moves.size());
+  const GcodePlan plan = BuildGcodePlan(program, *r->machine, job.vpop, job.path.gcode);
+  r->chains = plan.chains;
+  r->rapids = plan.rapids;
+  r->corners = plan.corners;
+  r->path_length_mm = plan.length_mm;
+  interp::ProgramOptions po;
+  po.threads = options.threads;
+  po.progress = options.progress;
+  interp::ProgramResult program_result;
+  try {
+    program_result = interp::PlanProgram(plan.segments, *r->machine, po);
+  } catch (const Error& e) {
+    throw Error("{}: {}", job.file, e.what());
+  }
+  TableSink sink(*r->machine, job.vpop.period_s);
+  for (const auto& sp : program_result.setpoints) sink.Accept(sp);
+  r->vpop = program_result.total;
+  r->table = sink.Table();
+  r->arc_length = sink.ArcLength();
+  r->limiters = sink.Limiters();
+}
+
+}  // namespace
+
 RunResult RunJob(const Job& job, const RunOptions& options) {
   RunResult r;
   r.machine = kinematics::LoadMachineFile(job.machine_file);
+  if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
+    const auto start = std::chrono::steady_clock::now();
+    RunGcode(job, options, &r);
+    r.compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    r.verify = interp::Verify(r.table, *r.machine);
+    return r;
+  }
   if (job.surface) {
     const auto start = std::chrono::steady_clock::now();
     RunSurface(job, options, &r);
@@ -443,6 +514,11 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
                                                 static_cast<double>(r.vpop.evaluations)
                                           : 0.0,
                        r.vpop.evaluations);
+  }
+  if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
+    out +=
+        fmt::format("program          {}: {} moves, {} contours, {} rapids, {} smoothed corners\n",
+                    job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
   }
   out += fmt::format("motion time      {:.6f} s\n", r.verify.motion_time_s);
   out += fmt::format("setpoints        {} at {:.6g} ms\n", r.verify.rows, job.vpop.period_s * 1e3);

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "dtis/core/pose.hpp"
@@ -36,6 +37,14 @@ struct PathSample {
   int iterations = 0;  // Newton iterations spent (0 for closed-form sources)
 };
 
+// A point the path must pass no faster than `feed_mm_s`, known before planning (the middle of a
+// smoothed G1 corner). The interpolator's look-ahead brakes for it as it brakes for the end of the
+// path (Beudaert 2012, §2.5): it reaches the point at that feed with zero acceleration.
+struct SlowPoint {
+  double s = 0.0;          // arc length, mm
+  double feed_mm_s = 0.0;  // > 0
+};
+
 class PathSource {
  public:
   virtual ~PathSource() = default;
@@ -49,6 +58,10 @@ class PathSource {
 
   // The pose at arc length `s`, warm-started from `from` (any earlier or later state of this path).
   virtual PathSample At(const PathState& from, double s) const = 0;
+
+  // Slow points sorted by arc length (none by default: the interpolator then finds every slow
+  // place by itself, through its exact axis checks and back-off).
+  virtual std::span<const SlowPoint> SlowPoints() const { return {}; }
 
   // Where a state is, for error messages: "pass 3, u=0.25, v=0.5".
   virtual std::string Describe(const PathState& state) const = 0;

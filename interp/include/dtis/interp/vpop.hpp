@@ -49,6 +49,10 @@ struct VpopOptions {
   // Axis positions the machine holds before this path: the first pose's solution branch and the
   // unwrapping of rotary axes continue from them (none: the machine's default branch).
   std::optional<AxisVector> previous_q;
+  // Start at this feed with zero acceleration instead of at rest (the two periods before the start
+  // lie on the path behind it, at arc lengths -2 F dt and -F dt). Used by the look-ahead's backward
+  // plans; a path planned this way does not start at rest.
+  double start_feed_mm_s = 0.0;
 
   bool IsValid(std::string* why) const;
 };
@@ -59,8 +63,9 @@ enum class Limiter : std::uint8_t {
   kFeed,
   kTangentialAcceleration,
   kTangentialJerk,
-  kFeedLookAhead,  // approaching a feed or axis-velocity cap without overshoot
-  kEndLookAhead,   // stopping at the end of the path
+  kFeedLookAhead,       // approaching a feed or axis-velocity cap without overshoot
+  kEndLookAhead,        // stopping at the end of the path
+  kSlowPointLookAhead,  // braking for a slow point of the path (a G1 corner)
   kPathEnd,
   kAxisVelocity,
   kAxisAcceleration,
@@ -89,6 +94,8 @@ class SetpointSink {
   virtual ~SetpointSink() = default;
   // Called once per setpoint, in order. A setpoint handed over never changes.
   virtual void Accept(const Setpoint& setpoint) = 0;
+  // True when the sink wants no more setpoints: planning stops after the next hand-over.
+  virtual bool Done() const { return false; }
 };
 
 struct VpopSummary {

@@ -15,6 +15,7 @@
 #include "dtis/interp/taylor.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/gcode_program.hpp"
 #include "dtis/strategies/strategy.hpp"
 
 namespace dtis::io {
@@ -22,9 +23,11 @@ namespace dtis::io {
 enum class InterpolatorKind { kVpop, kTaylor1, kTaylor2 };
 
 struct PathSpec {
-  enum class Kind { kLine, kCurve } kind = Kind::kLine;
+  enum class Kind { kLine, kCurve, kGcode } kind = Kind::kLine;
   Eigen::Vector3d from = Eigen::Vector3d::Zero(), to = Eigen::Vector3d::Zero();
   std::string curve_file;  // resolved
+  std::string gcode_file;  // resolved
+  GcodeOptions gcode;
   Eigen::Vector3d tool_axis = Eigen::Vector3d::UnitZ();
 };
 
@@ -71,6 +74,8 @@ struct RunResult {
   interp::VerifyReport verify;
   double compute_s = 0.0;  // planning time, wall clock
   double path_length_mm = 0.0;
+  // G-code jobs.
+  int blocks = 0, chains = 0, rapids = 0, corners = 0;
   // Surface jobs.
   int passes = 0;
   int links = 0;

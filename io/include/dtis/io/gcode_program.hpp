@@ -1,0 +1,46 @@
+// A G-code program as paths for the interpolator: rapids on their own, and every run of feed moves
+// at one feed as one smoothed chain (geometry/g1_path.hpp), planned rest to rest one after the
+// other by interp::PlanProgram.
+//
+// Coordinates: X Y Z are the tool tip in the workpiece frame and the rotary words A B C are the
+// machine's rotary axes, which set the tool axis through the machine's forward kinematics (TCP
+// programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts at the
+// end of its first move (the positioning move). A chain ends, and the machine comes to rest, at a
+// rapid, a change of feed, a junction with an arc that is not tangent, or a reversal.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dtis/core/machine.hpp"
+#include "dtis/core/path_source.hpp"
+#include "dtis/geometry/g1_path.hpp"
+#include "dtis/interp/program.hpp"
+#include "dtis/io/gcode.hpp"
+
+namespace dtis::io {
+
+struct GcodeOptions {
+  geometry::CornerOptions corners;
+  // Feed of rapids (mm/s); 0: as fast as the machine's linear axes allow.
+  double rapid_feed_mm_s = 0.0;
+  // Largest programmed feed (mm/s): a feed override; infinity: the program's F.
+  double max_feed_mm_s = std::numeric_limits<double>::infinity();
+  // Arcs join their neighbours without a stop when their tangents differ by at most this (rad).
+  double tangent_rad = 1e-3;
+};
+
+struct GcodePlan {
+  std::vector<std::unique_ptr<PathSource>> paths;
+  std::vector<interp::ProgramSegment> segments;  // one per path, in order
+  int chains = 0, rapids = 0, corners = 0;
+  double length_mm = 0.0;  // tip path length of the feed moves
+};
+
+// `base` carries the period and the tangential limits; each segment gets its own feed. Throws
+// dtis::Error "<file>:<line>: ..." for a program the machine cannot run.
+GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
+                         const interp::VpopOptions& base, const GcodeOptions& options);
+
+}  // namespace dtis::io

@@ -1,0 +1,169 @@
+#include "dtis/io/gcode_program.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
+
+namespace dtis::io {
+namespace {
+
+using Eigen::Vector3d;
+
+// The tool axis the machine holds at the program's rotary positions (degrees).
+class AxisOf {
+ public:
+  AxisOf(const GcodeProgram& program, const Machine& machine) : machine_(machine) {
+    const auto axes = machine.Axes();
+    for (int k = 0; k < 3; ++k) {
+      const char letter = static_cast<char>('A' + k);
+      index_[k] = -1;
+      for (std::size_t i = 0; i < axes.size(); ++i) {
+        if (axes[i].rotary && axes[i].name == std::string(1, letter))
+          index_[k] = static_cast<int>(i);
+      }
+      if (program.uses_rotary[static_cast<std::size_t>(k)] && index_[k] < 0) {
+        throw Error("{}: the program moves rotary axis {} but machine '{}' has none", program.file,
+                    letter, machine.Name());
+      }
+    }
+  }
+  Vector3d operator()(const GcodeMove& m) const {
+    AxisVector q = AxisVector::Zero(machine_.AxisCount());
+    for (int k = 0; k < 3; ++k) {
+      if (index_[k] >= 0)
+        q[index_[k]] = m.rotary[static_cast<std::size_t>(k)] * std::numbers::pi / 180.0;
+    }
+    return machine_.Forward(q).axis;
+  }
+
+ private:
+  const Machine& machine_;
+  int index_[3];
+};
+
+}  // namespace
+
+GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
+                         const interp::VpopOptions& base, const GcodeOptions& options) {
+  GcodePlan plan;
+  if (program.moves.empty()) throw Error("{}: the program has no moves", program.file);
+  const AxisOf axis_of(program, machine);
+  double rapid = options.rapid_feed_mm_s;
+  if (!(rapid > 0.0)) {
+    double sum = 0.0;
+    for (const Axis& a : machine.Axes()) {
+      if (!a.rotary) sum += a.vmax * a.vmax;
+    }
+    rapid = std::sqrt(sum);
+  }
+  const auto where = [&program](const GcodeMove& m) {
+    return fmt::format("{}:{}", program.file, m.line);
+  };
+
+  Vector3d tip = program.moves.front().to;
+  Vector3d axis = axis_of(program.moves.front());
+  std::vector<geometry::ChainMove> chain;
+  Vector3d chain_tip = tip, chain_axis = axis;
+  double chain_feed = 0.0;
+  int chain_first_line = 0;
+
+  const auto flush = [&] {
+    if (chain.empty()) return;
+    geometry::CornerOptions corners = options.corners;
+    corners.feed_mm_s = chain_feed;
+    std::unique_ptr<geometry::G1Path> path;
+    try {
+      path = std::make_unique<geometry::G1Path>(chain_tip, chain_axis, chain, machine, corners);
+    } catch (const Error& e) {
+      throw Error("{}: {}", program.file, e.what());
+    }
+    plan.corners += static_cast<int>(path->Corners().size());
+    plan.length_mm += *path->Length();
+    interp::VpopOptions o = base;
+    o.feed_mm_s = chain_feed;
+    plan.segments.push_back(
+        {path.get(), o,
+         fmt::format("{}: lines {}-{}", program.file, chain_first_line, chain.back().line)});
+    plan.paths.push_back(std::move(path));
+    ++plan.chains;
+    chain.clear();
+  };
+
+  for (std::size_t k = 1; k < program.moves.size(); ++k) {
+    const GcodeMove& m = program.moves[k];
+    const Vector3d next_axis = axis_of(m);
+    const bool moves_tip = (m.to - tip).norm() > 1e-9;
+    const bool turns = (next_axis - axis).norm() > 1e-12;
+    if (!moves_tip && m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw) {
+      if (turns) {
+        throw Error(
+            "{}: the block turns the tool without moving its tip (not supported: give the "
+            "turn some tip motion)",
+            where(m));
+      }
+      continue;  // a repeated point
+    }
+    if (m.kind == GcodeMove::Kind::kRapid) {
+      flush();
+      interp::VpopOptions o = base;
+      o.feed_mm_s = rapid;
+      std::unique_ptr<PathSource> path;
+      if (!turns) {
+        path = std::make_unique<geometry::LinePath>(tip, m.to, axis);
+      } else {
+        constexpr double kLever = 100.0;
+        geometry::BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {tip, m.to}, {}};
+        geometry::BSplineCurveData top{
+            1, {0.0, 0.0, 1.0, 1.0}, {tip + kLever * axis, m.to + kLever * next_axis}, {}};
+        path = std::make_unique<geometry::CurvePath>(geometry::BSplineCurve(std::move(bottom)),
+                                                     geometry::BSplineCurve(std::move(top)));
+      }
+      plan.segments.push_back({path.get(), o, fmt::format("{}: rapid", where(m))});
+      plan.paths.push_back(std::move(path));
+      ++plan.rapids;
+    } else {
+      const double feed = std::min(m.feed_mm_min / 60.0, options.max_feed_mm_s);
+      geometry::ChainMove c;
+      c.kind = m.kind == GcodeMove::Kind::kLinear ? geometry::ChainMove::Kind::kLine
+                                                  : geometry::ChainMove::Kind::kArc;
+      c.tip = m.to;
+      c.axis = next_axis;
+      c.center = m.center;
+      c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
+      c.line = m.line;
+      bool joins = !chain.empty() && feed == chain_feed;
+      if (joins) {
+        const geometry::ChainMove& prev = chain.back();
+        const Vector3d prev_from = chain.size() > 1 ? chain[chain.size() - 2].tip : chain_tip;
+        const Vector3d out = geometry::EndTangent(prev_from, prev);
+        const Vector3d in = geometry::StartTangent(tip, c);
+        const double angle = std::atan2(out.cross(in).norm(), out.dot(in));
+        const bool arc = prev.kind == geometry::ChainMove::Kind::kArc ||
+                         c.kind == geometry::ChainMove::Kind::kArc;
+        if (arc ? angle > options.tangent_rad : angle > std::numbers::pi - 1e-6) joins = false;
+      }
+      if (!joins) {
+        flush();
+        chain_tip = tip;
+        chain_axis = axis;
+        chain_feed = feed;
+        chain_first_line = m.line;
+      }
+      chain.push_back(c);
+    }
+    tip = m.to;
+    axis = next_axis;
+  }
+  flush();
+  if (plan.segments.empty()) {
+    throw Error("{}: the program never moves after its first positioning move", program.file);
+  }
+  return plan;
+}
+
+}  // namespace dtis::io

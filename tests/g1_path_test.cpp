@@ -1,0 +1,315 @@
+// G1 corner smoothing (3- and 5-axis) and G-code programs planned by VPOp: tolerances measured
+// densely, C2 connections, the C2 orientation against the paper's three parametrizations,
+// collinear blocks against the straight line, and a symmetric feed around a symmetric corner.
+#include "dtis/geometry/g1_path.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
+#include "dtis/interp/verifier.hpp"
+#include "dtis/interp/vpop.hpp"
+#include "dtis/io/gcode_program.hpp"
+#include "dtis/io/job.hpp"
+#include "dtis/io/setpoint_file.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis {
+namespace {
+
+using test::Cartesian;
+
+using Eigen::Vector3d;
+
+double DistanceToSegment(const Vector3d& x, const Vector3d& a, const Vector3d& b) {
+  const Vector3d d = b - a;
+  const double t = std::clamp((x - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+  return (x - (a + t * d)).norm();
+}
+
+// The largest distance of the smoothed tip from the programmed tip polyline, and of the tool
+// axis (the line through the tip, near height h) from the programmed top polyline, sampled every
+// `step` mm of the path.
+std::pair<double, double> Deviation(const geometry::G1Path& path, const std::vector<Vector3d>& tips,
+                                    const std::vector<Vector3d>& tops, double h, double step) {
+  const auto to_polyline = [](const Vector3d& x, const std::vector<Vector3d>& line) {
+    double d = INFINITY;
+    for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+      d = std::min(d, DistanceToSegment(x, line[k], line[k + 1]));
+    }
+    return d;
+  };
+  double worst_tip = 0.0, worst_top = 0.0;
+  int hint = 0;
+  for (double s = 0.0; s <= *path.Length(); s += step) {
+    const Pose pose = path.PoseAt(s, &hint);
+    worst_tip = std::max(worst_tip, to_polyline(pose.tip, tips));
+    if (h > 0.0) {
+      // Golden-section search along the axis for the point nearest the top polyline.
+      double a = 0.5 * h, b = 1.5 * h;
+      const auto f = [&](double t) { return to_polyline(pose.tip + t * pose.axis, tops); };
+      const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+      for (int k = 0; k < 80; ++k) {
+        const double x1 = b - g * (b - a), x2 = a + g * (b - a);
+        if (f(x1) <= f(x2)) {
+          b = x2;
+        } else {
+          a = x1;
+        }
+      }
+      worst_top = std::max(worst_top, f(0.5 * (a + b)));
+    }
+  }
+  return {worst_tip, worst_top};
+}
+
+TEST(G1Path, LockCornersStayWithinTheContourToleranceAndUseIt) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  // The lock's contour starts after its plunge: take the blocks after the first G1 at Z0.
+  const io::GcodeProgram program = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
+  std::vector<geometry::ChainMove> moves;
+  std::vector<Vector3d> tips{program.moves[1].to};
+  for (std::size_t k = 2; k + 1 < program.moves.size(); ++k) {
+    geometry::ChainMove m;
+    m.tip = program.moves[k].to;
+    m.line = program.moves[k].line;
+    moves.push_back(m);
+    tips.push_back(m.tip);
+  }
+  geometry::CornerOptions o;
+  o.contour_tol_mm = 0.02;
+  o.feed_mm_s = 50.0;
+  const geometry::G1Path path(tips.front(), Vector3d::UnitZ(), moves, *machine, o);
+  EXPECT_GT(path.Corners().size(), 50u);
+  const auto [tip, top] = Deviation(path, tips, tips, 0.0, 1e-3);
+  EXPECT_LE(tip, 0.02 * (1.0 + 1e-9));
+  // Where the blocks are long enough, Eq. 3 uses the whole tolerance: the middle of the corner
+  // curve is exactly eps from the corner point.
+  int full = 0;
+  for (const auto& c : path.Corners()) {
+    int hint = 0;
+    const Vector3d mid = path.PoseAt(0.5 * (c.s0 + c.s1), &hint).tip;
+    double d = INFINITY;  // from the programmed corner point (Eq. 3 measures it so)
+    for (const Vector3d& p : tips) d = std::min(d, (mid - p).norm());
+    EXPECT_LE(d, 0.02 * (1.0 + 1e-9));
+    EXPECT_LT(c.l1, c.l2);
+    if (std::abs(d - 0.02) < 1e-9) ++full;
+  }
+  EXPECT_GT(full, 5);
+}
+
+// One-sided second differences of f at s, from the left and from the right.
+template <typename F>
+std::pair<Vector3d, Vector3d> SecondDerivatives(const F& f, double s, double h) {
+  const Vector3d left = (f(s) - 2.0 * f(s - h) + f(s - 2.0 * h)) / (h * h);
+  const Vector3d right = (f(s + 2.0 * h) - 2.0 * f(s + h) + f(s)) / (h * h);
+  return {left, right};
+}
+
+TEST(G1Path, TipIsCurvatureContinuousAtEveryConnection) {
+  const auto machine = Cartesian(500, 2500, 5000);
+  std::vector<geometry::ChainMove> moves(3);
+  moves[0].tip = {10, 0, 0};
+  moves[1].tip = {12, 6, 0};
+  moves[2].tip = {0, 9, 1};
+  const geometry::G1Path path({0, 0, 0}, Vector3d::UnitZ(), moves, *machine);
+  ASSERT_EQ(path.Corners().size(), 2u);
+  const auto tip = [&path](double s) {
+    int hint = 0;
+    return path.PoseAt(s, &hint).tip;
+  };
+  for (const auto& c : path.Corners()) {
+    double peak = 0.0;
+    for (int k = 1; k < 100; ++k) {
+      const double s = c.s0 + (c.s1 - c.s0) * k / 100.0;
+      peak = std::max(peak, SecondDerivatives(tip, s, 1e-4).second.norm());
+    }
+    for (const double s : {c.s0, c.s1}) {
+      const auto [left, right] = SecondDerivatives(tip, s, 1e-4 * (c.s1 - c.s0));
+      // Zero curvature on both sides (the jump a tangent-continuous join would show is the peak).
+      EXPECT_LT((left - right).norm(), 2e-3 * peak) << "at s = " << s;
+    }
+  }
+}
+
+// A 5-axis corner: the tool leans 15 degrees and the lean turns with the path.
+struct FiveAxisCorner {
+  std::unique_ptr<Machine> machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  std::vector<geometry::ChainMove> moves;
+  Vector3d start_axis;
+  FiveAxisCorner() {
+    const auto axis = [this](double a_deg, double c_deg) {
+      AxisVector q = AxisVector::Zero(5);
+      q[3] = a_deg * std::numbers::pi / 180.0;
+      q[4] = c_deg * std::numbers::pi / 180.0;
+      return machine->Forward(q).axis;
+    };
+    start_axis = axis(15, 0);
+    moves.resize(2);
+    moves[0].tip = {20, 0, 0};
+    moves[0].axis = axis(20, 10);
+    moves[1].tip = {25, 15, -2};
+    moves[1].axis = axis(12, 60);
+  }
+  geometry::G1Path Path(geometry::TopParametrization top) const {
+    geometry::CornerOptions o;
+    o.top = top;
+    o.feed_mm_s = 100.0;
+    return geometry::G1Path({0, 0, 0}, start_axis, moves, *machine, o);
+  }
+};
+
+TEST(G1Path, FiveAxisCornerKeepsBothTolerancesAndTheOrientationC2) {
+  const FiveAxisCorner corner;
+  const geometry::G1Path path = corner.Path(geometry::TopParametrization::kC2);
+  ASSERT_EQ(path.Corners().size(), 1u);
+  const geometry::CornerOptions o;
+  const std::vector<Vector3d> tips{{0, 0, 0}, corner.moves[0].tip, corner.moves[1].tip};
+  const std::vector<Vector3d> tops{tips[0] + o.top_height_mm * corner.start_axis,
+                                   tips[1] + o.top_height_mm * corner.moves[0].axis,
+                                   tips[2] + o.top_height_mm * corner.moves[1].axis};
+  const auto [tip, top] = Deviation(path, tips, tops, o.top_height_mm, 1e-3);
+  EXPECT_LE(tip, o.contour_tol_mm * (1.0 + 1e-9));
+  EXPECT_LE(top, o.orientation_tol_mm * (1.0 + 1e-9));
+  // On the straight parts the pose is the programmed linear interpolation of tip and top.
+  int hint = 0;
+  const Pose quarter = path.PoseAt(5.0, &hint);
+  const Vector3d programmed_top = tops[0] + 0.25 * (tops[1] - tops[0]);
+  EXPECT_LT((quarter.tip - (tips[0] + 0.25 * (tips[1] - tips[0]))).norm(), 1e-12);
+  EXPECT_LT((quarter.axis - (programmed_top - quarter.tip).normalized()).norm(), 1e-12);
+}
+
+TEST(G1Path, C2OrientationHasNoJumpAndBeatsThePapersParametrizations) {
+  const FiveAxisCorner corner;
+  using T = geometry::TopParametrization;
+  double feed_c2 = 0.0;
+  for (const T top : {T::kC2, T::kBottomParameter, T::kUniform, T::kTopArcLength}) {
+    const geometry::G1Path path = corner.Path(top);
+    const auto& c = path.Corners().front();
+    const auto axis = [&path](double s) {
+      int hint = 0;
+      return path.PoseAt(s, &hint).axis;
+    };
+    // One-sided second differences on either side of each connection: where the second
+    // derivative is continuous their difference shrinks with the step (it is only the
+    // differences' own O(h) error); where it jumps it stays.
+    const auto jump = [&](double h) {
+      double worst = 0.0;
+      for (const double s : {c.s0, c.s1}) {
+        const auto [left, right] = SecondDerivatives(axis, s, h);
+        worst = std::max(worst, (left - right).norm());
+      }
+      return worst;
+    };
+    const double coarse = jump(1e-3), fine = jump(1e-4);
+    const double span = c.s1 - c.s0;
+    const double feed = geometry::ReachableFeed(path, *corner.machine, c.s0 - 0.2 * span,
+                                                c.s1 + 0.2 * span, span / 400.0);
+    if (top == T::kC2) {
+      EXPECT_LT(fine, 0.2 * coarse);
+      feed_c2 = feed;
+    } else {
+      EXPECT_GE(feed_c2, feed) << "parametrization " << static_cast<int>(top);
+    }
+    // The paper's parametrizations 1 and 2 leave a jump in the orientation's second derivative.
+    if (top == T::kBottomParameter || top == T::kUniform) {
+      EXPECT_GT(fine, 0.5 * coarse);
+      EXPECT_GT(fine, 1e-2);
+    }
+  }
+}
+
+TEST(G1Path, CollinearBlocksPlanLikeTheStraightLine) {
+  const auto machine = Cartesian(500, 2500, 5e6);  // a large jerk limit
+  std::vector<geometry::ChainMove> moves;
+  for (int k = 1; k <= 10; ++k) {
+    geometry::ChainMove m;
+    m.tip = {7.0 * k, 3.0 * k, 0.0};
+    moves.push_back(m);
+  }
+  const geometry::G1Path chain({0, 0, 0}, Vector3d::UnitZ(), moves, *machine);
+  EXPECT_TRUE(chain.Corners().empty());
+  const geometry::LinePath line({0, 0, 0}, moves.back().tip, Vector3d::UnitZ());
+  interp::VpopOptions o;
+  o.feed_mm_s = 100.0;
+  test::Collect a, b;
+  const auto ta = interp::PlanVpop(chain, *machine, o, a).motion_time_s;
+  const auto tb = interp::PlanVpop(line, *machine, o, b).motion_time_s;
+  EXPECT_LE(std::abs(ta - tb), 2.0 * o.period_s);
+}
+
+TEST(G1Path, FeedIsSymmetricAroundASymmetricCorner) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  std::vector<geometry::ChainMove> moves(2);
+  moves[0].tip = {30, 0, 0};
+  moves[1].tip = {30, 30, 0};
+  geometry::CornerOptions co;
+  co.feed_mm_s = 50.0;
+  const geometry::G1Path path({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, co);
+  ASSERT_EQ(path.SlowPoints().size(), 1u);
+  interp::VpopOptions o;
+  o.feed_mm_s = 50.0;
+  test::Collect sink;
+  const auto summary = interp::PlanVpop(path, *machine, o, sink);
+  io::TableSink table(*machine, o.period_s);
+  for (const auto& s : sink.points) table.Accept(s);
+  EXPECT_LE(interp::Verify(table.Table(), *machine).worst_ratio, 1.0);
+  // Feed against arc length (each period's feed at the middle of its step), compared at equal
+  // distances before and after the middle of the corner.
+  std::vector<std::pair<double, double>> feed;
+  for (std::size_t k = 1; k < sink.points.size(); ++k) {
+    const double a = sink.points[k - 1].s, b = sink.points[k].s;
+    if (b > a) feed.push_back({0.5 * (a + b), (b - a) / o.period_s});
+  }
+  const auto feed_at = [&feed](double s) {
+    const auto hi = std::upper_bound(feed.begin(), feed.end(), s,
+                                     [](double x, const auto& p) { return x < p.first; });
+    const auto lo = hi - 1;
+    return lo->second + (s - lo->first) / (hi->first - lo->first) * (hi->second - lo->second);
+  };
+  const SlowPoint slow = path.SlowPoints()[0];
+  EXPECT_NEAR(feed_at(slow.s), slow.feed_mm_s, 0.05 * slow.feed_mm_s);
+  double worst = 0.0;
+  for (double d = 0.0; d < 20.0; d += 0.01) {
+    worst = std::max(worst, std::abs(feed_at(slow.s - d) - feed_at(slow.s + d)));
+  }
+  EXPECT_LT(worst, 0.01 * o.feed_mm_s) << "back-offs " << summary.back_offs;
+}
+
+TEST(GcodeProgram, SamplesPlanWithinEveryLimit) {
+  for (const char* name : {"samples/jobs/lock.toml", "samples/jobs/five_axis_g1.toml"}) {
+    const io::Job job = io::LoadJob(test::Source(name));
+    const io::RunResult r = io::RunJob(job);
+    EXPECT_LE(r.verify.worst_ratio, 1.0) << name;
+    EXPECT_GT(r.corners, 20) << name;
+    EXPECT_GT(r.verify.motion_time_s, 0.0) << name;
+  }
+}
+
+TEST(GcodeProgram, BadProgramsNameTheLine) {
+  const auto machine = Cartesian(500, 2500, 5000);
+  interp::VpopOptions o;
+  o.feed_mm_s = 1.0;
+  const auto error = [&machine, &o](const std::string& text) {
+    try {
+      const io::GcodeProgram p = io::ParseGcode(text, "p.ngc");
+      io::BuildGcodePlan(p, *machine, o, {});
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error("G0 X0 Y0\nG1 X10 F600 A5\n"),
+            "p.ngc: the program moves rotary axis A but machine 'test' has none");
+  EXPECT_EQ(error("G0 X0 Y0\n"), "p.ngc: the program never moves after its first positioning move");
+}
+
+}  // namespace
+}  // namespace dtis
