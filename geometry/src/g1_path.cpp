@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 
 #include "dtis/core/error.hpp"
@@ -415,6 +416,32 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
     if (c.reachable_feed_mm_s < options.feed_mm_s) {
       slow_.push_back({0.5 * (c.s0 + c.s1), c.reachable_feed_mm_s});
     }
+  }
+  // Where corners come closer than a braking distance from the feed (F sqrt(F / J) with the
+  // lowest linear jerk), keep the slowest of them: the look-ahead plans one backward limit per
+  // slow point, and between close corners the exact axis checks decide anyway. A program of
+  // fine blocks (CAM output of a freeform) would otherwise plan one per block.
+  double jerk = INFINITY;
+  for (const Axis& a : linear) jerk = std::min(jerk, a.jmax);
+  const double window = std::isfinite(options.feed_mm_s) && std::isfinite(jerk)
+                            ? options.feed_mm_s * std::sqrt(options.feed_mm_s / jerk)
+                            : 0.0;
+  if (window > 0.0 && slow_.size() > 1) {
+    std::vector<std::size_t> order(slow_.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::stable_sort(order.begin(), order.end(), [this](std::size_t a, std::size_t b) {
+      return slow_[a].feed_mm_s < slow_[b].feed_mm_s;
+    });
+    std::map<double, double> kept;  // s -> feed
+    for (const std::size_t k : order) {
+      const double s = slow_[k].s;
+      const auto next = kept.lower_bound(s);
+      if (next != kept.end() && next->first - s < window) continue;
+      if (next != kept.begin() && s - std::prev(next)->first < window) continue;
+      kept.emplace(s, slow_[k].feed_mm_s);
+    }
+    slow_.clear();
+    for (const auto& [s, feed] : kept) slow_.push_back({s, feed});
   }
 }
 
