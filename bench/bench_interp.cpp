@@ -115,8 +115,10 @@ void GcodeRead(benchmark::State& state) {
 BENCHMARK(GcodeRead)->Unit(benchmark::kMillisecond);
 
 // Planning G-code, single thread: corner smoothing and VPOp on the lock sample, and on a
-// 100 000-block program (a wavy line discretized into 0.1 mm G1 blocks, as CAM exports a freeform
-// pass). Setpoints per second and the real-time factor.
+// 98 300-block program (a raster of 100 rows of 100 mm, each cut into 0.1 mm G1 blocks with 1 mm
+// blocks at both ends, as CAM exports a planar face; 1 mm steps and 90 degree corners between
+// rows). Setpoints per second
+// and the real-time factor.
 //   build/bench/dtis_bench --benchmark_filter=GcodePlan
 void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
                  const dtis::io::Job& job) {
@@ -145,12 +147,17 @@ BENCHMARK(GcodePlanLock)->Unit(benchmark::kMillisecond);
 
 void GcodePlan100k(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
-  std::string text = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 F3000\n";
-  for (int k = 1; k <= 100000; ++k) {
-    const double x = 0.1 * k;
-    text += "X" + std::to_string(x) + " Y" + std::to_string(5.0 * std::sin(x / 20.0)) + "\n";
+  std::string text = "G21 G90 G17\nG0 X-50 Y-50 Z0\nG1 F3000\n";
+  for (int row = 0; row < 100; ++row) {
+    const double y = -50.0 + row;
+    if (row > 0) text += "Y" + std::to_string(y) + "\n";
+    // 1 mm blocks at both ends of a row, 0.1 mm between.
+    for (int k = 10; k <= 1000; k = k < 990 ? k + 1 : k + 10) {
+      const double x = row % 2 == 0 ? -50.0 + 0.1 * k : 50.0 - 0.1 * k;
+      text += "X" + std::to_string(x) + "\n";
+    }
   }
-  GcodePlanOn(state, dtis::io::ParseGcode(text, "wave.ngc"), job);
+  GcodePlanOn(state, dtis::io::ParseGcode(text, "raster.ngc"), job);
 }
 BENCHMARK(GcodePlan100k)->Unit(benchmark::kMillisecond)->Iterations(1);
 
