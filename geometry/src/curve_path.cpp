@@ -5,15 +5,6 @@
 #include "dtis/core/error.hpp"
 
 namespace dtis::geometry {
-namespace {
-
-ArcLengthMap::Evaluator Evaluate(const BSplineCurve& curve) {
-  return [&curve](double u, int order, Eigen::Vector3d* d, bool from_left) {
-    curve.Derivatives(u, order, d, from_left);
-  };
-}
-
-}  // namespace
 
 std::vector<double> DistinctKnots(const BSplineCurve& curve) {
   std::vector<double> breaks;
@@ -24,11 +15,30 @@ std::vector<double> DistinctKnots(const BSplineCurve& curve) {
   return breaks;
 }
 
+ArcLengthMap ArcLengthOf(const BSplineCurve& curve, const ArcLengthOptions& options) {
+  return ArcLengthMap([&curve](double u, int order, Eigen::Vector3d* d,
+                               bool from_left) { curve.Derivatives(u, order, d, from_left); },
+                      DistinctKnots(curve), options);
+}
+
+std::unique_ptr<PathSource> StraightMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                         const Eigen::Vector3d& from_axis,
+                                         const Eigen::Vector3d& to_axis) {
+  if ((to_axis - from_axis).norm() < 1e-12) return std::make_unique<LinePath>(from, to, from_axis);
+  // The tool axis turns linearly in its top point, 100 mm up the axis.
+  constexpr double kLeverMm = 100.0;
+  BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {from, to}, {}};
+  BSplineCurveData top{
+      1, {0.0, 0.0, 1.0, 1.0}, {from + from_axis * kLeverMm, to + to_axis * kLeverMm}, {}};
+  return std::make_unique<CurvePath>(BSplineCurve(std::move(bottom), "move"),
+                                     BSplineCurve(std::move(top), "move"));
+}
+
 CurvePath::CurvePath(BSplineCurve curve, const Eigen::Vector3d& tool_axis,
                      const ArcLengthOptions& options)
     : bottom_(std::move(curve)),
       axis_(tool_axis.normalized()),
-      map_(Evaluate(bottom_), DistinctKnots(bottom_), options) {
+      map_(ArcLengthOf(bottom_, options)) {
   if (!(tool_axis.norm() > 0.0)) throw Error("tool axis must be a non-zero vector");
   if (!(map_.Length() > 0.0)) throw Error("curve has zero length");
 }
@@ -37,7 +47,7 @@ CurvePath::CurvePath(BSplineCurve bottom, BSplineCurve top, const ArcLengthOptio
     : bottom_(std::move(bottom)),
       top_(std::move(top)),
       axis_(Eigen::Vector3d::UnitZ()),
-      map_(Evaluate(bottom_), DistinctKnots(bottom_), options) {
+      map_(ArcLengthOf(bottom_, options)) {
   if (top_->Degree() != bottom_.Degree() || top_->Knots() != bottom_.Knots()) {
     throw Error("top curve must have the bottom curve's degree and knots (same parametrization)");
   }
@@ -118,21 +128,11 @@ std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose&
   };
   line(from.tip, out1, from.axis);
   line(out1, up1, from.axis);
-  if ((to.axis - from.axis).norm() < 1e-12) {
-    line(up1, up2, from.axis);
-  } else {
-    if ((up2 - up1).norm() <= kMinMm) {
-      throw Error(
-          "link move: the tool axis must turn where the tool does not move; raise the "
-          "clearance");
-    }
-    // The tool axis turns linearly in its top point, 100 mm up the axis.
-    constexpr double kLeverMm = 100.0;
-    BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {up1, up2}, {}};
-    BSplineCurveData top{
-        1, {0.0, 0.0, 1.0, 1.0}, {up1 + from.axis * kLeverMm, up2 + to.axis * kLeverMm}, {}};
-    moves.push_back(std::make_unique<CurvePath>(BSplineCurve(std::move(bottom), "link"),
-                                                BSplineCurve(std::move(top), "link")));
+  if ((up2 - up1).norm() > kMinMm) {
+    moves.push_back(StraightMove(up1, up2, from.axis, to.axis));
+  } else if ((to.axis - from.axis).norm() >= 1e-12) {
+    throw Error(
+        "link move: the tool axis must turn where the tool does not move; raise the clearance");
   }
   line(up2, out2, to.axis);
   line(out2, to.tip, to.axis);

@@ -48,8 +48,8 @@ double Eq8(const Axis& axis, double qs, double qss, double qsss) {
   return f;
 }
 
-// Eq. 8 on the curve's Cartesian coordinates, which are the machine's linear axes when the tool
-// axis does not turn (an XYZ machine, or XYZAC at A = 0).
+// Eq. 8 on the curve's Cartesian coordinates, which are the machine's linear axes (at most three)
+// when the tool axis does not turn (an XYZ machine, or XYZAC at A = 0).
 double CartesianFeed(const BSplineCurve& curve, std::span<const Axis> linear, double feed) {
   constexpr int kSamples = 24;
   double best = feed;
@@ -59,7 +59,7 @@ double CartesianFeed(const BSplineCurve& curve, std::span<const Axis> linear, do
     if (!(d[1].norm() > 1e-12)) continue;
     Vector3d qs, qss, qsss;
     ArcDerivatives(d, &qs, &qss, &qsss);
-    for (std::size_t i = 0; i < linear.size() && i < 3; ++i) {
+    for (std::size_t i = 0; i < linear.size(); ++i) {
       const int c = static_cast<int>(i);
       best = std::min(best, Eq8(linear[i], qs[c], qss[c], qsss[c]));
     }
@@ -85,10 +85,13 @@ double DeviationFromCorner(const BSplineCurve& curve, const Vector3d& a, const V
   return worst;
 }
 
-ArcLengthMap::Evaluator Evaluate(const BSplineCurve& curve) {
-  return [&curve](double u, int order, Vector3d* d, bool from_left) {
-    curve.Derivatives(u, order, d, from_left);
-  };
+// The signed angle an arc sweeps from radius r0 to radius r1 (XY), in (0, 2 pi] counterclockwise
+// and [-2 pi, 0) clockwise: equal radii make a full circle.
+double ArcSweep(const Vector3d& r0, const Vector3d& r1, bool clockwise) {
+  double sweep = std::atan2(r0.x() * r1.y() - r0.y() * r1.x(), r0.x() * r1.x() + r0.y() * r1.y());
+  if (clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
+  if (!clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
+  return sweep;
 }
 
 double Angle(const Vector3d& a, const Vector3d& b) {
@@ -103,12 +106,8 @@ Vector3d StartTangent(const Vector3d& from, const ChainMove& move) {
   Vector3d t(-r.y(), r.x(), 0.0);
   if (move.clockwise) t = -t;
   // The helix rises along z over the sweep; its tangent leans by the rise per unit of arc.
-  const Vector3d e = move.tip - move.center;
-  double sweep = std::atan2(r.x() * e.y() - r.y() * e.x(), r.x() * e.x() + r.y() * e.y());
-  if (move.clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
-  if (!move.clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
-  const double radius = std::hypot(r.x(), r.y());
-  t = t.normalized() * radius * std::abs(sweep);
+  const double sweep = ArcSweep(r, move.tip - move.center, move.clockwise);
+  t = t.normalized() * std::hypot(r.x(), r.y()) * std::abs(sweep);
   t.z() = move.tip.z() - from.z();
   return t.normalized();
 }
@@ -116,9 +115,8 @@ Vector3d StartTangent(const Vector3d& from, const ChainMove& move) {
 Vector3d EndTangent(const Vector3d& from, const ChainMove& move) {
   if (move.kind == ChainMove::Kind::kLine) return (move.tip - from).normalized();
   ChainMove reversed = move;
-  reversed.tip = Vector3d(from.x(), from.y(), from.z());
+  reversed.tip = from;
   reversed.clockwise = !move.clockwise;
-  reversed.center.z() = move.tip.z();
   return -StartTangent(move.tip, reversed);
 }
 
@@ -175,7 +173,7 @@ void G1Path::AddLine(const Vector3d& a, const Vector3d& b, const Vector3d& ta, c
 G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
                const std::vector<ChainMove>& moves, const Machine& machine,
                const CornerOptions& options)
-    : h_(options.top_height_mm), axis_(start_axis.normalized()) {
+    : h_(options.top_height_mm), top_param_(options.top), axis_(start_axis.normalized()) {
   if (moves.empty()) throw Error("a G1 chain needs at least one move");
   if (!(options.contour_tol_mm > 0.0) || !(options.orientation_tol_mm > 0.0) ||
       !(options.top_height_mm > 0.0)) {
@@ -209,7 +207,9 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
   // up to half of either block), then the pieces.
   struct Plan {
     bool corner = false;
-    double l1 = 0.0, l2 = 0.0, top_l1 = 0.0, feed = INFINITY;
+    double l1 = 0.0, l2 = 0.0, feed = INFINITY;
+    std::shared_ptr<const BSplineCurve> bottom, top;
+    double r_in = 0.0, r_out = 0.0;  // mm of top per mm of tip on either block (5-axis)
   };
   std::vector<Plan> plan(n + 1);
   for (std::size_t k = 1; k < n; ++k) {
@@ -266,26 +266,29 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
       c.l2 = l2_max;  // the tip goes straight; only the tool axis turns here
       c.l1 = 0.5 * c.l2;
     }
+    c.bottom = std::make_shared<const BSplineCurve>(
+        CornerCurve(p[k], d_in, d_out, c.l1, c.l2, c.l1, c.l2));
     if (five_axis_) {
       // The top point's control lengths scale with its rate on either block (mm of top per mm
       // of tip), so that its line pieces keep the programmed correspondence; its inner length
       // is set by eps_top, measured densely.
       const double r_in = top_in.norm(), r_out = top_out.norm();
+      c.r_in = r_in;
+      c.r_out = r_out;
       const double bend = (top_out - top_in).norm();
       double l1 =
           bend > 0.0 ? std::min(4.0 * options.orientation_tol_mm / bend, 0.5 * c.l2) : 0.5 * c.l2;
       const Vector3d e_in = r_in > 0.0 ? Vector3d(top_in / r_in) : Vector3d::Zero();
       const Vector3d e_out = r_out > 0.0 ? Vector3d(top_out / r_out) : Vector3d::Zero();
-      for (int i = 0; i < 40; ++i) {
-        const BSplineCurve top =
-            CornerCurve(t[k], e_in, e_out, r_in * l1, r_in * c.l2, r_out * l1, r_out * c.l2);
-        if (DeviationFromCorner(top, t[k] - r_in * c.l2 * e_in, t[k],
+      for (int i = 0;; ++i, l1 *= 0.8) {
+        c.top = std::make_shared<const BSplineCurve>(
+            CornerCurve(t[k], e_in, e_out, r_in * l1, r_in * c.l2, r_out * l1, r_out * c.l2));
+        if (i == 40 ||
+            DeviationFromCorner(*c.top, t[k] - r_in * c.l2 * e_in, t[k],
                                 t[k] + r_out * c.l2 * e_out) <= options.orientation_tol_mm) {
           break;
         }
-        l1 *= 0.8;
       }
-      c.top_l1 = l1;
     }
   }
 
@@ -309,44 +312,30 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
       const Vector3d r1 = p[i + 1] - m.center;
       a.a = Vector3d(m.center.x(), m.center.y(), p[i].z());
       a.radius = std::hypot(r0.x(), r0.y());
-      double sweep =
-          std::atan2(r0.x() * r1.y() - r0.y() * r1.x(), r0.x() * r1.x() + r0.y() * r1.y());
-      if (m.clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
-      if (!m.clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
-      a.sweep = sweep;
+      a.sweep = ArcSweep(r0, r1, m.clockwise);
       a.d = Vector3d(r0.x(), r0.y(), 0.0);
       a.dz = p[i + 1].z() - p[i].z();
-      a.length = std::hypot(a.radius * sweep, a.dz);
+      a.length = std::hypot(a.radius * a.sweep, a.dz);
       if (!(a.radius > 1e-9)) throw Error("line {}: the arc has no radius", m.line);
       pieces_.push_back(a);
       length_ += a.length;
     }
     if (i + 1 < n && plan[i + 1].corner) {
-      const std::size_t k = i + 1;
-      const Plan& c = plan[k];
-      const double len_in = (p[k] - p[k - 1]).norm(), len_out = (p[k + 1] - p[k]).norm();
-      const Vector3d d_in = (p[k] - p[k - 1]) / len_in, d_out = (p[k + 1] - p[k]) / len_out;
+      const Plan& c = plan[i + 1];
       Corner corner;
       corner.l1 = c.l1;
       corner.l2 = c.l2;
       corner.line = m.line;
-      corner.bottom = std::make_shared<const BSplineCurve>(
-          CornerCurve(p[k], d_in, d_out, c.l1, c.l2, c.l1, c.l2));
+      corner.bottom = c.bottom;
+      corner.top = c.top;
       Piece piece;
       piece.kind = Piece::Kind::kCorner;
       piece.line = m.line;
       piece.s0 = length_;
       piece.corner = static_cast<int>(corners_.size());
-      piece.map = std::make_shared<const ArcLengthMap>(Evaluate(*corner.bottom),
-                                                       DistinctKnots(*corner.bottom));
+      piece.map = std::make_shared<const ArcLengthMap>(ArcLengthOf(*corner.bottom));
       piece.length = piece.map->Length();
       if (five_axis_) {
-        const Vector3d top_in = (t[k] - t[k - 1]) / len_in, top_out = (t[k + 1] - t[k]) / len_out;
-        const double r_in = top_in.norm(), r_out = top_out.norm();
-        const Vector3d e_in = r_in > 0.0 ? Vector3d(top_in / r_in) : Vector3d::Zero();
-        const Vector3d e_out = r_out > 0.0 ? Vector3d(top_out / r_out) : Vector3d::Zero();
-        corner.top = std::make_shared<const BSplineCurve>(CornerCurve(
-            t[k], e_in, e_out, r_in * c.top_l1, r_in * c.l2, r_out * c.top_l1, r_out * c.l2));
         const double S = piece.length;
         // The top parameter's slope and curvature at both ends, in tip arc length, that make the
         // top point move as on the blocks: C_t'(w) w' = rate e, C_t''(w) w'^2 + C_t'(w) w'' = 0.
@@ -363,8 +352,8 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
           *second = -d[2].dot(d[1] / speed) * (*slope) * (*slope) / speed;
         };
         double s0d, s0dd, s1d, s1dd;
-        ends(0.0, r_in, &s0d, &s0dd);
-        ends(1.0, r_out, &s1d, &s1dd);
+        ends(0.0, c.r_in, &s0d, &s0dd);
+        ends(1.0, c.r_out, &s1d, &s1dd);
         const double a1 = S * s0d, a2 = S * S * s0dd, b1 = S * s1d, b2 = S * S * s1dd;
         piece.w[0] = 0.0;
         piece.w[1] = a1;
@@ -388,10 +377,8 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
           }
         }
         if (options.top == TopParametrization::kTopArcLength) {
-          piece.top_map = std::make_shared<const ArcLengthMap>(Evaluate(*corner.top),
-                                                               DistinctKnots(*corner.top));
+          piece.top_map = std::make_shared<const ArcLengthMap>(ArcLengthOf(*corner.top));
         }
-        top_param_ = options.top;
       }
       corner.s0 = piece.s0;
       corner.s1 = piece.s0 + piece.length;

@@ -515,8 +515,6 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   return lo;
 }
 
-// The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, pass the
-// path's slow points no faster than their feed, and stop at the end of the path.
 const std::vector<std::pair<double, double>>* Planner::SlowCurve(std::size_t k, const Step& near) {
   const auto slow = path_.SlowPoints();
   if (curves_.size() != slow.size()) curves_.assign(slow.size(), std::nullopt);
@@ -541,6 +539,8 @@ const std::vector<std::pair<double, double>>* Planner::SlowCurve(std::size_t k, 
   return curve->empty() ? nullptr : &*curve;
 }
 
+// The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, pass the
+// path's slow points no faster than their feed, and stop at the end of the path.
 std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e) {
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
@@ -585,7 +585,11 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
     if (hi - s0 <= limit(hi) * dt_) continue;
     for (int k = 0; k < 60 && hi - lo > 1e-13 * (1.0 + std::abs(hi)); ++k) {
       const double mid = 0.5 * (lo + hi);
-      (mid - s0 <= limit(mid) * dt_ ? lo : hi) = mid;
+      if (mid - s0 <= limit(mid) * dt_) {
+        lo = mid;
+      } else {
+        hi = mid;
+      }
     }
     curve_target = std::min(curve_target, lo);
   }

@@ -112,17 +112,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
       flush();
       interp::VpopOptions o = base;
       o.feed_mm_s = rapid;
-      std::unique_ptr<PathSource> path;
-      if (!turns) {
-        path = std::make_unique<geometry::LinePath>(tip, m.to, axis);
-      } else {
-        constexpr double kLever = 100.0;
-        geometry::BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {tip, m.to}, {}};
-        geometry::BSplineCurveData top{
-            1, {0.0, 0.0, 1.0, 1.0}, {tip + kLever * axis, m.to + kLever * next_axis}, {}};
-        path = std::make_unique<geometry::CurvePath>(geometry::BSplineCurve(std::move(bottom)),
-                                                     geometry::BSplineCurve(std::move(top)));
-      }
+      std::unique_ptr<PathSource> path = geometry::StraightMove(tip, m.to, axis, next_axis);
       plan.segments.push_back({path.get(), o, fmt::format("{}: rapid", where(m))});
       plan.paths.push_back(std::move(path));
       ++plan.rapids;

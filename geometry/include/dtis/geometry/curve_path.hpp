@@ -66,4 +66,13 @@ std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose&
 // The distinct knots of a curve inside its domain, ends included.
 std::vector<double> DistinctKnots(const BSplineCurve& curve);
 
+// The arc-length map of a curve, broken at its distinct knots. The curve must outlive the map.
+ArcLengthMap ArcLengthOf(const BSplineCurve& curve, const ArcLengthOptions& options = {});
+
+// A straight move of the tool tip: a line with a fixed tool axis, or, when the axis turns, the
+// 5-axis line pair whose top point (100 mm up the axis) moves linearly too. The tip must move.
+std::unique_ptr<PathSource> StraightMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                         const Eigen::Vector3d& from_axis,
+                                         const Eigen::Vector3d& to_axis);
+
 }  // namespace dtis::geometry
