@@ -32,8 +32,9 @@ AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
     std::remove(temp_.c_str());
     throw Error("{}: cannot open the temporary output file", path_);
   }
-  static char buffer[1 << 16];
-  std::setvbuf(file_, buffer, _IOFBF, sizeof buffer);
+  // Each file its own buffer: several may be open at once (a run's setpoints and limiters).
+  buffer_.resize(1 << 16);
+  std::setvbuf(file_, buffer_.data(), _IOFBF, buffer_.size());
 }
 
 AtomicFile::~AtomicFile() {

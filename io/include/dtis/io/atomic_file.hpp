@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace dtis::io {
 
@@ -22,6 +23,7 @@ class AtomicFile {
  private:
   std::string path_, temp_;
   std::FILE* file_ = nullptr;
+  std::vector<char> buffer_;  // stdio's buffer for file_; outlives it (freed after fclose)
   bool committed_ = false;
 };
 
