@@ -173,6 +173,18 @@ int BSplineCurve::FindSpan(double u, bool from_left) const {
   return static_cast<int>(std::upper_bound(first, last, u) - knots_.begin()) - 1;
 }
 
+int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double* N) {
+  const int p = degree;
+  const int n = static_cast<int>(knots.size()) - p - 2;  // last pole index
+  u = std::clamp(u, knots[static_cast<std::size_t>(p)], knots[static_cast<std::size_t>(n + 1)]);
+  const auto first = knots.begin() + p;
+  const auto last = knots.begin() + n + 1;  // the last span is closed on the right
+  const int span =
+      std::clamp(static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1, p, n);
+  BasisFunctions(knots, span, u, p, N);
+  return span - p;
+}
+
 Eigen::Vector3d BSplineCurve::Point(double u) const {
   u = std::clamp(u, FirstParameter(), LastParameter());
   const int span = FindSpan(u);

@@ -114,28 +114,33 @@ std::string LinePath::Describe(const PathState& state) const {
   return fmt::format("arc length {} mm on the line", state.s);
 }
 
-std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
-                                                   double clearance) {
+std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance) {
   const Eigen::Vector3d out1 = from.tip + from.axis * clearance;
   const Eigen::Vector3d out2 = to.tip + to.axis * clearance;
   const Eigen::Vector3d up1(out1.x(), out1.y(), std::max(safe_z, out1.z()));
   const Eigen::Vector3d up2(out2.x(), out2.y(), std::max(safe_z, out2.z()));
   constexpr double kMinMm = 1e-9;
-  std::vector<std::unique_ptr<PathSource>> moves;
-  const auto line = [&moves](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                             const Eigen::Vector3d& axis) {
-    if ((b - a).norm() > kMinMm) moves.push_back(std::make_unique<LinePath>(a, b, axis));
-  };
-  line(from.tip, out1, from.axis);
-  line(out1, up1, from.axis);
-  if ((up2 - up1).norm() > kMinMm) {
-    moves.push_back(StraightMove(up1, up2, from.axis, to.axis));
-  } else if ((to.axis - from.axis).norm() >= 1e-12) {
-    throw Error(
-        "link move: the tool axis must turn where the tool does not move; raise the clearance");
+  std::vector<Pose> points{from};
+  for (const Pose& p : {Pose{out1, from.axis}, Pose{up1, from.axis}, Pose{up2, to.axis},
+                        Pose{out2, to.axis}, Pose{to.tip, to.axis}}) {
+    if ((p.tip - points.back().tip).norm() > kMinMm) {
+      points.push_back(p);
+    } else if ((p.axis - points.back().axis).norm() >= 1e-12) {
+      throw Error(
+          "link move: the tool axis must turn where the tool does not move; raise the clearance");
+    }
   }
-  line(up2, out2, to.axis);
-  line(out2, to.tip, to.axis);
+  return points;
+}
+
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
+                                                   double clearance) {
+  const std::vector<Pose> points = LinkWaypoints(from, to, safe_z, clearance);
+  std::vector<std::unique_ptr<PathSource>> moves;
+  for (std::size_t k = 1; k < points.size(); ++k) {
+    moves.push_back(
+        StraightMove(points[k - 1].tip, points[k].tip, points[k - 1].axis, points[k].axis));
+  }
   return moves;
 }
 

@@ -53,4 +53,9 @@ class BSplineCurve {
   std::vector<Eigen::Vector4d> weighted_;  // (w*P, w) for rational curves
 };
 
+// The degree + 1 basis functions of a knot vector that do not vanish at u (clamped to the domain),
+// written to N[0..degree]; returns the index of the pole N[0] weights. For fitting, where the
+// poles are the unknowns. `knots` must be valid for some number of poles (size >= 2 degree + 2).
+int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double* N);
+
 }  // namespace dtis::geometry

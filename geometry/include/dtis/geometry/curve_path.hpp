@@ -63,6 +63,10 @@ class LinePath final : public PathSource {
 std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
                                                    double clearance);
 
+// The poses LinkMoves goes through, `from` and `to` included, without repeats: the same link as a
+// program of straight moves (a G-code export writes one rapid to each after the first).
+std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance);
+
 // The distinct knots of a curve inside its domain, ends included.
 std::vector<double> DistinctKnots(const BSplineCurve& curve);
 
