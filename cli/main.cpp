@@ -6,11 +6,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/verifier.hpp"
+#include "dtis/io/atomic_file.hpp"
+#include "dtis/io/compare.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -58,6 +61,36 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
   return result.verify.Passed() || job.interpolator != dtis::io::InterpolatorKind::kVpop ? 0 : 3;
 }
 
+struct CompareArgs {
+  std::string job, csv, markdown, exports;
+  bool quiet = false;
+  int threads = 0;
+};
+
+int Compare(const CompareArgs& a) {
+  const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  dtis::io::CompareOptions options;
+  options.threads = a.threads;
+  options.exports_dir = a.exports;
+  const bool tty = !a.quiet && isatty(fileno(stderr));
+  options.progress = [tty](const std::string& variant) {
+    if (tty) std::fprintf(stderr, "\r\033[Kexporting and planning %s ...", variant.c_str());
+  };
+  const dtis::io::CompareResult result = dtis::io::RunCompare(job, options);
+  if (tty) std::fputs("\r\033[K", stderr);
+  // Both tables land together or not at all.
+  std::optional<dtis::io::AtomicFile> csv, md;
+  if (!a.csv.empty()) csv.emplace(a.csv).Write(dtis::io::FormatCompareCsv(result));
+  if (!a.markdown.empty()) md.emplace(a.markdown).Write(dtis::io::FormatCompareMarkdown(result));
+  if (csv) csv->Commit();
+  if (md) md->Commit();
+  std::fputs(dtis::io::FormatCompareText(result).c_str(), stdout);
+  for (const auto& v : result.variants) {
+    if (!v.verify.Passed()) return 3;
+  }
+  return 0;
+}
+
 int Verify(const std::string& setpoints, const std::string& machine_file) {
   const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
   const auto table = dtis::io::ReadSetpoints(setpoints);
@@ -98,6 +131,22 @@ int main(int argc, char** argv) {
                   "threads for a surface job's passes (0: all cores); the output is the same")
       ->check(CLI::NonNegativeNumber);
 
+  auto* compare = app.add_subcommand(
+      "compare",
+      "For a surface job, plan the same passes from G1 and B-spline exports at the job's [compare] "
+      "tolerances and directly on the surface, and print one table: blocks, planned time, "
+      "deviation from the exact path, verification and the limiting axes.");
+  CompareArgs ca;
+  compare->add_option("JOB", ca.job, "surface job file (see samples/jobs/)")->required();
+  compare->add_option("--csv", ca.csv, "also write the table as CSV");
+  compare->add_option("--markdown", ca.markdown, "also write the table as Markdown");
+  compare->add_option("--exports", ca.exports,
+                      "write the exports there: G1 programs (.ngc), B-spline curve files (.toml), "
+                      "Siemens BSPLINE programs (.mpf), LinuxCNC G5.2 programs for XY passes");
+  compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
+  compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+
   auto* faces = app.add_subcommand(
       "faces",
       "List the faces of a STEP part file: index, surface type, degree, poles, rational, trimmed, "
@@ -122,6 +171,7 @@ int main(int argc, char** argv) {
   try {
     if (*run) return Run(job, output, limiters, quiet, threads);
     if (*faces) return Faces(step_file);
+    if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);
   } catch (const dtis::Error& e) {
     std::fprintf(stderr, "dtis: error: %s\n", e.what());

@@ -98,5 +98,13 @@ expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "
 printf 'G0 X0 Y0\nG1 X10 F600 A5\n' > "$work/bad.ngc"
 expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
 
-echo "$((20 - failures)) passed, $failures failed"
+# dtis compare: only surface jobs; a bad [compare] key names the file, line and key; no table is
+# left behind.
+printf '\n[compare]\n' >> "$work/base.toml"
+expect compare-path "only surface jobs ([surface]) are compared" -- "$dtis" compare "$work/base.toml" --csv "$work/out.csv"
+sed 's/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/' "$work/surf.toml" > "$work/cmp.toml"
+printf '\n[compare]\ng1_tolerances_mm = [0.01, -1]\n' >> "$work/cmp.toml"
+expect compare-tol "key 'compare.g1_tolerances_mm': expected tolerances > 0 mm, got -1" -- "$dtis" compare "$work/cmp.toml" --csv "$work/out.csv"
+
+echo "$((22 - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -25,3 +25,12 @@ done
 "$dtis" run "$root/samples/jobs/surface_plane_cl_3axis.toml" -o "$out/two.csv" -j 2 -q
 cmp "$out/one.csv" "$out/two.csv"
 echo "surface job: byte-identical with 1 and 2 threads"
+
+# The comparison of exports (issue 5) on the 5-axis sample: every variant verifies (exit 0), and the
+# tables and exports are written.
+"$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" -q --csv "$out/cmp.csv" \
+  --markdown "$out/cmp.md" --exports "$out/exports"
+test "$(wc -l < "$out/cmp.csv")" -eq 6
+test -s "$out/exports/surface_tilt10_xyzac_g1_1um.ngc"
+test -s "$out/exports/surface_tilt10_xyzac_bspline_1um.mpf"
+echo "compare: ok"

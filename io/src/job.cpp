@@ -21,6 +21,45 @@
 namespace dtis::io {
 namespace {
 
+// G1 corner smoothing: the keys of a G-code [path] and of [compare].
+void ReadCornerOptions(TomlTable& t, geometry::CornerOptions* c) {
+  if (auto e = t.OptionalPositiveNumber("contour_tol_mm")) c->contour_tol_mm = *e;
+  if (auto e = t.OptionalPositiveNumber("orientation_tol_mm")) c->orientation_tol_mm = *e;
+  if (auto h = t.OptionalPositiveNumber("top_height_mm")) c->top_height_mm = *h;
+  if (auto p = t.OptionalChoice("top_parametrization",
+                                {"c2", "bottom_parameter", "uniform", "top_arc_length"})) {
+    using T = geometry::TopParametrization;
+    c->top = *p == "c2"                 ? T::kC2
+             : *p == "bottom_parameter" ? T::kBottomParameter
+             : *p == "uniform"          ? T::kUniform
+                                        : T::kTopArcLength;
+  }
+}
+
+void ReadCompare(TomlTable& root, Job* job) {
+  auto t = root.OptionalTable("compare");
+  if (!t) return;
+  if (!job->surface)
+    root.Fail("compare", "only surface jobs ([surface]) are compared with exports");
+  CompareSpec& c = job->compare;
+  for (const char* key : {"g1_tolerances_mm", "bspline_tolerances_mm"}) {
+    if (!t->Has(key)) continue;
+    std::vector<double> tol = t->Numbers(key);
+    for (double v : tol) {
+      if (!(v > 0.0)) t->Fail(key, fmt::format("expected tolerances > 0 mm, got {}", v));
+    }
+    (std::string_view(key) == "g1_tolerances_mm" ? c.g1_tolerances_mm : c.bspline_tolerances_mm) =
+        std::move(tol);
+  }
+  if (auto o = t->OptionalPositiveNumber("orientation_tol_deg")) {
+    if (!(*o < 45.0)) t->Fail("orientation_tol_deg", fmt::format("expected < 45 deg, got {}", *o));
+    c.orientation_tol_deg = *o;
+  }
+  if (auto s = t->OptionalPositiveNumber("sample_step_mm")) c.sample_step_mm = *s;
+  ReadCornerOptions(*t, &c.corners);
+  t->RejectUnknown();
+}
+
 void ReadPath(TomlTable& root, Job* out) {
   Job& job = *out;
   TomlTable path = root.Table("path");
@@ -28,18 +67,7 @@ void ReadPath(TomlTable& root, Job* out) {
   if (kind == "gcode") {
     job.path.kind = PathSpec::Kind::kGcode;
     job.path.gcode_file = ResolveRelative(job.file, path.String("file"));
-    geometry::CornerOptions& c = job.path.gcode.corners;
-    if (auto e = path.OptionalPositiveNumber("contour_tol_mm")) c.contour_tol_mm = *e;
-    if (auto e = path.OptionalPositiveNumber("orientation_tol_mm")) c.orientation_tol_mm = *e;
-    if (auto h = path.OptionalPositiveNumber("top_height_mm")) c.top_height_mm = *h;
-    if (auto p = path.OptionalChoice("top_parametrization",
-                                     {"c2", "bottom_parameter", "uniform", "top_arc_length"})) {
-      using T = geometry::TopParametrization;
-      c.top = *p == "c2"                 ? T::kC2
-              : *p == "bottom_parameter" ? T::kBottomParameter
-              : *p == "uniform"          ? T::kUniform
-                                         : T::kTopArcLength;
-    }
+    ReadCornerOptions(path, &job.path.gcode.corners);
     if (auto r = path.OptionalPositiveNumber("rapid_feed_mm_min")) {
       job.path.gcode.rapid_feed_mm_s = *r / 60.0;
     }
@@ -219,6 +247,8 @@ Job ReadJob(TomlTable& root) {
     job.vpop.feed_mm_s = (feed ? *feed : root.PositiveNumber("feed_mm_min")) / 60.0;
   }
 
+  ReadCompare(root, &job);
+
   if (auto t = root.OptionalTable("tangential")) {
     if (auto a = t->OptionalPositiveNumber("acceleration_mm_s2")) {
       job.vpop.tangential_acceleration_mm_s2 = *a;
@@ -304,10 +334,7 @@ std::unique_ptr<PathSource> BuildPath(const Job& job) {
   }
 }
 
-namespace {
-
-// Passes and the links between them, planned as one program.
-void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
+SurfaceSetup SetUpSurface(const Job& job) {
   const SurfaceSpec& spec = *job.surface;
   if (job.interpolator != InterpolatorKind::kVpop) {
     throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
@@ -316,18 +343,24 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   const TopoDS_Face placed =
       geometry::PlaceFace(model.Face(spec.face), spec.rotate_deg, spec.translate_mm);
   const geometry::FaceSurface face(placed, fmt::format("{} face {}", spec.step_file, spec.face));
-  const strategies::PassList passes =
-      strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
-  const double safe_z = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
-  interp::VpopOptions link_options = job.vpop;
-  if (spec.link_feed_mm_s > 0.0) link_options.feed_mm_s = spec.link_feed_mm_s;
-  const int n = static_cast<int>(passes.passes.size());
-  r->passes = n;
-  r->stepover_mm = passes.stepover_mm;
+  SurfaceSetup setup;
+  setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
+  setup.safe_z_mm = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
+  setup.clearance_mm = spec.clearance_mm;
+  setup.pass_options = job.vpop;
+  setup.link_options = job.vpop;
+  if (spec.link_feed_mm_s > 0.0) setup.link_options.feed_mm_s = spec.link_feed_mm_s;
+  return setup;
+}
+
+PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const SurfaceSetup& setup,
+                       const Machine& machine, const RunOptions& options,
+                       const std::string& job_file) {
+  const int n = static_cast<int>(passes.size());
   std::vector<interp::ProgramSegment> pass_segments;
-  for (const auto& pass : passes.passes) {
-    pass_segments.push_back({pass.get(), job.vpop, fmt::format("pass {}", pass->Index())});
-    r->path_length_mm += *pass->Length();
+  for (int k = 0; k < n; ++k) {
+    pass_segments.push_back(
+        {passes[static_cast<std::size_t>(k)], setup.pass_options, fmt::format("pass {}", k + 1)});
   }
   // The passes first, in parallel; then the links, from where each pass really ended (its last
   // setpoint) to where the next one starts, so that no position jumps by even a rounding error.
@@ -339,7 +372,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   po.threads = options.threads;
   po.progress = progress(0, 2 * n - 1);
   std::vector<interp::PlannedSegment> planned_passes =
-      interp::PlanSegments(pass_segments, *r->machine, po);
+      interp::PlanSegments(pass_segments, machine, po);
   std::vector<std::unique_ptr<PathSource>> links;
   std::vector<interp::ProgramSegment> link_segments;
   std::vector<int> links_after(static_cast<std::size_t>(n), 0);
@@ -347,51 +380,67 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
     const auto& done = planned_passes[static_cast<std::size_t>(k)];
     const auto& next = planned_passes[static_cast<std::size_t>(k + 1)];
     if (done.error || next.error || done.rows.empty() || next.rows.empty()) continue;
-    const Pose from = r->machine->Forward(done.rows.back().q);
-    const Pose to = r->machine->Forward(next.rows.front().q);
+    const Pose from = machine.Forward(done.rows.back().q);
+    const Pose to = machine.Forward(next.rows.front().q);
     std::vector<std::unique_ptr<PathSource>> moves;
     try {
-      moves = geometry::LinkMoves(from, to, safe_z, spec.clearance_mm);
+      moves = geometry::LinkMoves(from, to, setup.safe_z_mm, setup.clearance_mm);
     } catch (const Error& e) {
-      throw Error("{}: linking pass {} to pass {}: {}", job.file, k + 1, k + 2, e.what());
+      throw Error("{}: linking pass {} to pass {}: {}", job_file, k + 1, k + 2, e.what());
     }
     for (auto& m : moves) {
       link_segments.push_back(
-          {m.get(), link_options, fmt::format("link from pass {} to pass {}", k + 1, k + 2)});
+          {m.get(), setup.link_options, fmt::format("link from pass {} to pass {}", k + 1, k + 2)});
       links.push_back(std::move(m));
       ++links_after[static_cast<std::size_t>(k)];
     }
   }
-  r->links = static_cast<int>(links.size());
+  PassProgram out;
+  out.links = static_cast<int>(links.size());
   po.progress = progress(n, 2 * n - 1);
   std::vector<interp::PlannedSegment> planned_links =
-      interp::PlanSegments(link_segments, *r->machine, po);
+      interp::PlanSegments(link_segments, machine, po);
   // Interleave: pass 1, its links, pass 2, ...
   std::vector<interp::ProgramSegment> segments;
   std::vector<interp::PlannedSegment> planned;
-  std::vector<bool> is_pass;
   std::size_t l = 0;
   for (int k = 0; k < n; ++k) {
     segments.push_back(pass_segments[static_cast<std::size_t>(k)]);
     planned.push_back(std::move(planned_passes[static_cast<std::size_t>(k)]));
-    is_pass.push_back(true);
+    out.pass_of_segment.push_back(k);
     for (int m = 0; m < links_after[static_cast<std::size_t>(k)]; ++m, ++l) {
       segments.push_back(link_segments[l]);
       planned.push_back(std::move(planned_links[l]));
-      is_pass.push_back(false);
+      out.pass_of_segment.push_back(-1);
     }
   }
-  interp::ProgramResult program;
   try {
-    program = interp::Stitch(segments, std::move(planned), *r->machine);
+    out.program = interp::Stitch(segments, std::move(planned), machine);
   } catch (const Error& e) {
-    throw Error("{}: {}", job.file, e.what());
+    throw Error("{}: {}", job_file, e.what());
   }
+  return out;
+}
+
+namespace {
+
+// Passes and the links between them, planned as one program.
+void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
+  const SurfaceSetup setup = SetUpSurface(job);
+  std::vector<const PathSource*> passes;
+  for (const auto& pass : setup.passes.passes) {
+    passes.push_back(pass.get());
+    r->path_length_mm += *pass->Length();
+  }
+  r->passes = static_cast<int>(passes.size());
+  r->stepover_mm = setup.passes.stepover_mm;
+  const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
+  r->links = pp.links;
   TableSink sink(*r->machine, job.vpop.period_s);
-  for (const auto& sp : program.setpoints) sink.Accept(sp);
-  r->vpop = program.total;
-  for (std::size_t k = 0; k < segments.size(); ++k) {
-    if (is_pass[k]) r->pass_motion_s += program.segments[k].motion_time_s;
+  for (const auto& sp : pp.program.setpoints) sink.Accept(sp);
+  r->vpop = pp.program.total;
+  for (std::size_t k = 0; k < pp.pass_of_segment.size(); ++k) {
+    if (pp.pass_of_segment[k] >= 0) r->pass_motion_s += pp.program.segments[k].motion_time_s;
   }
   r->table = sink.Table();
   r->arc_length = sink.ArcLength();

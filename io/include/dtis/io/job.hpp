@@ -45,12 +45,26 @@ struct SurfaceSpec {
   double link_feed_mm_s = 0.0;  // 0: the job's feed
 };
 
+// What `dtis compare` measures a surface job against: the exports a CAM system would make of its
+// passes (Beudaert et al. 2014, Tab. 1).
+struct CompareSpec {
+  std::vector<double> g1_tolerances_mm{0.01, 0.001};       // chordal tolerance of each G1 export
+  std::vector<double> bspline_tolerances_mm{0.01, 0.001};  // of each B-spline export
+  // 5-axis exports keep the tool axis within this of the exact one (as the top point, top_height_mm
+  // up the axis, within top_height * tan(orientation_tol)).
+  double orientation_tol_deg = 0.1;
+  double sample_step_mm = 0.01;  // the exact passes are sampled this finely for the exports
+  // Corner smoothing of the G1 variants (contour_tol_mm, orientation_tol_mm, top_height_mm).
+  geometry::CornerOptions corners;
+};
+
 struct Job {
   std::string file;  // the job file itself
   std::string name;
   std::string machine_file;  // resolved
   PathSpec path;
   std::optional<SurfaceSpec> surface;  // set for surface jobs ([surface] instead of [path])
+  CompareSpec compare;                 // [compare], surface jobs only
   InterpolatorKind interpolator = InterpolatorKind::kVpop;
   interp::VpopOptions vpop;
   interp::TaylorOptions taylor;
@@ -98,6 +112,27 @@ std::string FormatRunSummary(const Job& job, const RunResult& result);
 // Writes the setpoints (and the limiter report if asked) atomically.
 void WriteRunOutputs(const Job& job, const RunResult& result, const std::string& setpoints_path,
                      const std::string& limiters_path);
+
+// A surface job's passes and how they are linked (for RunJob and the comparison of exports).
+struct SurfaceSetup {
+  strategies::PassList passes;
+  double safe_z_mm = 0.0;     // links traverse at this height
+  double clearance_mm = 0.0;  // and back off this far along the tool axis first
+  interp::VpopOptions pass_options, link_options;
+};
+SurfaceSetup SetUpSurface(const Job& job);
+
+struct PassProgram {
+  interp::ProgramResult program;
+  std::vector<int> pass_of_segment;  // per segment of `program`: its pass (0-based), -1: a link
+  int links = 0;
+};
+// Paths planned as a surface job's passes, in order, each linked to the next by LinkMoves from
+// where it really ended (its last setpoint). `passes[k]` may be the exact pass k or any export of
+// it (a fitted B-spline): the links are the same. Throws dtis::Error prefixed with `job_file`.
+PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const SurfaceSetup& setup,
+                       const Machine& machine, const RunOptions& options,
+                       const std::string& job_file);
 
 // Builds the PathSource a job describes (for library users and tests).
 std::unique_ptr<PathSource> BuildPath(const Job& job);

@@ -1,0 +1,66 @@
+// The comparison of Beudaert et al. 2014 (Tab. 1), for any surface job: the same passes machined
+// from G1 exports and B-spline exports at the job's tolerances, and directly on the surface (DTIS),
+// planned by the same interpolator on the same machine, and measured against the exact path.
+//
+// Exports are made from the exact passes sampled every sample_step_mm: G1 vertices by chordal
+// discretization, B-splines by least squares (geometry/path_fit.hpp). G1 variants are planned as
+// the G-code program they are written as (corner smoothing with the job's [compare] contour
+// tolerance, links as rapids at the link feed); B-spline variants as curves with the exact run's
+// links. Deviations are measured at points independent of the samples the exports were made from:
+// the export's, between the samples, and the motion's, at every setpoint of a pass.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "dtis/interp/verifier.hpp"
+#include "dtis/io/job.hpp"
+
+namespace dtis::io {
+
+struct CompareOptions {
+  int threads = 0;  // 0: all cores
+  // Where the exports are written (G-code, curve files, Siemens program); "" writes none.
+  std::string exports_dir;
+  // Called when a variant starts: "G1 10 um", ... From the calling thread.
+  std::function<void(const std::string&)> progress;
+};
+
+struct VariantResult {
+  enum class Kind { kG1, kBSpline, kExact } kind = Kind::kExact;
+  std::string name;            // "G1 10 um", "B-spline 1 um", "DTIS (exact surface)"
+  double tolerance_mm = 0.0;   // 0 for the exact surface
+  long blocks = 0;             // G1 blocks on the passes, or B-spline control points; 0 for DTIS
+  double motion_time_s = 0.0;  // the whole program, links included
+  double pass_time_s = 0.0;    // on the passes only
+  double export_deviation_mm = 0.0;        // the export's tip path from the exact one, both ways
+  double export_axis_deviation_deg = 0.0;  // the export's tool axis from the exact one
+  double motion_deviation_mm = 0.0;  // the planned tip positions on the passes from the exact path
+  // The planned tool axis from the exact one at the nearest exact point (G1: corner smoothing
+  // turns the axis within the job's orientation_tol_mm too).
+  double motion_axis_deviation_deg = 0.0;
+  interp::VerifyReport verify;
+  std::string limiting;    // the axis constraints that decided most periods: "Z jerk 18%, ..."
+  double compute_s = 0.0;  // export and planning
+  std::vector<std::string> files;  // exports written
+};
+
+struct CompareResult {
+  std::string job;
+  std::string machine;
+  int passes = 0;
+  double path_length_mm = 0.0;
+  double sample_step_mm = 0.0;
+  std::vector<VariantResult> variants;  // G1 ..., B-spline ..., DTIS
+  std::vector<std::string> notes;       // what was not written, and why
+};
+
+// Throws dtis::Error naming the job, pass and what failed.
+CompareResult RunCompare(const Job& job, const CompareOptions& options = {});
+
+std::string FormatCompareText(const CompareResult& result);
+std::string FormatCompareCsv(const CompareResult& result);
+std::string FormatCompareMarkdown(const CompareResult& result);
+
+}  // namespace dtis::io

@@ -1,0 +1,301 @@
+// Exports of exact paths and the comparison of Beudaert et al. 2014, Tab. 1: chordal polylines and
+// least-squares B-splines checked against a circle's closed form, LinuxCNC's G5.2 knot convention
+// re-evaluated independently, and `RunCompare` on the samples: every export within its
+// tolerance, measured densely; the exact variant within 1e-6 mm; every variant verified; G1
+// programs read back and planned to the same time; curve files read back to the same curves.
+#include "dtis/io/compare.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <regex>
+#include <sstream>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/path_fit.hpp"
+#include "dtis/interp/program.hpp"
+#include "dtis/io/curve_file.hpp"
+#include "dtis/io/exports.hpp"
+#include "dtis/io/gcode_program.hpp"
+#include "dtis/io/setpoint_file.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis {
+namespace {
+
+using Eigen::Vector3d;
+
+constexpr double kRadius = 50.0;
+const Vector3d kCenter(50.0, 0.0, 0.0);
+
+geometry::CurvePath Circle(double z = 0.0) {
+  io::CurveFile f = io::LoadCurveFile(test::Source("samples/curves/nurbs_circle.toml"));
+  geometry::BSplineCurveData data{f.bottom.Degree(), f.bottom.Knots(), f.bottom.Poles(),
+                                  f.bottom.Weights()};
+  for (auto& p : data.poles) p.z() = z;
+  return geometry::CurvePath(geometry::BSplineCurve(std::move(data)), Vector3d::UnitZ());
+}
+
+// Distance of a point in the circle's plane from the circle.
+double OffCircle(const Vector3d& x) { return std::abs((x - kCenter).head<2>().norm() - kRadius); }
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+TEST(Chordal, CircleChordsWithinToleranceAndAsLongAsAllowed) {
+  const geometry::CurvePath circle = Circle();
+  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
+  for (double tol : {0.01, 0.001}) {
+    const auto v = geometry::ChordalVertices(s, {tol, 0.1, 100.0});
+    // Closed form: a chord of angle theta leaves R (1 - cos(theta / 2)) between it and the arc.
+    const double theta_max = 2.0 * std::acos(1.0 - tol / kRadius);
+    for (std::size_t k = 0; k + 1 < v.size(); ++k) {
+      const Vector3d a = s.tip[v[k]] - kCenter, b = s.tip[v[k + 1]] - kCenter;
+      const double theta = std::atan2(a.cross(b).norm(), a.dot(b));
+      EXPECT_LE(kRadius * (1.0 - std::cos(theta / 2.0)), tol);
+      if (k + 2 < v.size()) EXPECT_GT(theta, 0.98 * theta_max) << "chord " << k << " too short";
+    }
+    const double chords = 2.0 * std::numbers::pi / theta_max;
+    EXPECT_LE(static_cast<double>(v.size() - 1), std::ceil(chords / 0.98) + 1);
+  }
+}
+
+TEST(BSplineFit, CircleWithinToleranceMeasuredByItsRadius) {
+  const geometry::CurvePath circle = Circle();
+  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
+  for (bool uniform : {false, true}) {
+    for (double tol : {0.01, 0.001}) {
+      geometry::BSplineFitOptions o;
+      o.tolerance.tip_mm = tol;
+      o.uniform_knots = uniform;
+      const geometry::BSplineFit fit = geometry::FitCubicBSpline(s, o, "circle");
+      EXPECT_FALSE(fit.top);
+      EXPECT_EQ(fit.bottom.Degree(), 3);
+      EXPECT_EQ(fit.bottom.Point(fit.bottom.FirstParameter()), s.tip.front());
+      EXPECT_EQ(fit.bottom.Point(fit.bottom.LastParameter()), s.tip.back());
+      double worst = 0.0;
+      const double a = fit.bottom.FirstParameter(), b = fit.bottom.LastParameter();
+      for (int k = 0; k <= 200000; ++k) {
+        worst = std::max(worst, OffCircle(fit.bottom.Point(a + (b - a) * k / 200000.0)));
+      }
+      EXPECT_LE(worst, tol) << (uniform ? "uniform" : "inserted") << " knots";
+      // Not absurdly conservative either: a cubic needs a few poles per quarter at 10 um.
+      EXPECT_GT(worst, 0.05 * tol);
+    }
+  }
+}
+
+TEST(BSplineFit, UnreachableToleranceIsAClearError) {
+  const geometry::CurvePath circle = Circle();
+  const geometry::PathSamples s = geometry::SamplePath(circle, 5.0, "circle");
+  geometry::BSplineFitOptions o;
+  o.tolerance.tip_mm = 1e-7;
+  try {
+    geometry::FitCubicBSpline(s, o, "pass 7");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pass 7"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("sample_step_mm"), std::string::npos) << e.what();
+  }
+}
+
+TEST(PathProjector, FindsTheCircleDistance) {
+  const geometry::CurvePath circle = Circle();
+  const geometry::PathSamples s = geometry::SamplePath(circle, 0.5, "circle");
+  const geometry::PathProjector projector(circle, s);
+  std::mt19937 rng(test::g_seed);
+  // Angles from the centre; the circle starts and ends at angle pi, where a point just past the
+  // seam has its foot at the other end of the path: stay 0.05 rad away from it.
+  std::uniform_real_distribution<double> angle(std::numbers::pi + 0.05,
+                                               3.0 * std::numbers::pi - 0.05),
+      off(-2.0, 2.0);
+  std::size_t hint = 0;
+  for (long k = 0; k < std::min(test::g_count, 500L); ++k) {
+    const double t = angle(rng), d = off(rng);
+    const Vector3d x = kCenter + (kRadius + d) * Vector3d(std::cos(t), std::sin(t), 0.0);
+    // The hint the contract asks for: a sample near the answer (the circle closes on itself, so
+    // a far hint may find the other end).
+    hint = 0;
+    for (std::size_t i = 0; i < s.Size(); ++i) {
+      if ((s.tip[i] - x).norm() < (s.tip[hint] - x).norm()) hint = i;
+    }
+    hint = hint > 20 ? hint - 20 : 0;  // and not the nearest one itself
+    const auto foot = projector.Project(x, &hint);
+    EXPECT_NEAR(foot.distance, std::abs(d), 1e-9) << "at angle " << t;
+    EXPECT_NEAR(OffCircle(foot.pose.tip), 0.0, 1e-9);
+  }
+}
+
+// LinuxCNC's G5.2: the first control point is the current position, one X Y P line per further
+// point, order L, knots 0 (k times), 1, 2, ..., n - k + 2 (k times). Re-read the text and evaluate
+// it that way.
+TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
+  const geometry::CurvePath circle = Circle(5.0);
+  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
+  geometry::BSplineFitOptions o;
+  o.tolerance.tip_mm = 0.001;
+  o.uniform_knots = true;
+  const geometry::BSplineFit fit = geometry::FitCubicBSpline(s, o, "circle");
+  const std::vector<io::SplinePass> passes{{&fit.bottom, nullptr, Vector3d::UnitZ()}};
+  ASSERT_TRUE(io::PlanarXY(passes, 1e-9));
+  const std::string text = io::FormatLinuxcncNurbs(passes, 3000.0, {20.0, 5.0}, {"circle"});
+  std::vector<Vector3d> points;
+  int order = 0;
+  std::istringstream in(text);
+  std::string line;
+  const std::regex g0(R"(^G0 X(\S+) Y(\S+) Z(\S+)$)");
+  const std::regex cp(R"(^(G5\.2 )?X(\S+) Y(\S+) P1\.000000( L(\d+))?$)");
+  std::smatch m;
+  bool in_block = false, ended = false;
+  while (std::getline(in, line)) {
+    if (std::regex_match(line, m, g0)) {
+      points = {Vector3d(std::stod(m[1]), std::stod(m[2]), 0.0)};
+    } else if (std::regex_match(line, m, cp)) {
+      if (m[1].matched) {
+        in_block = true;
+        order = std::stoi(m[5]);
+      }
+      ASSERT_TRUE(in_block) << line;
+      points.emplace_back(std::stod(m[2]), std::stod(m[3]), 0.0);
+    } else if (line == "G5.3") {
+      ended = true;
+    }
+  }
+  ASSERT_TRUE(ended);
+  ASSERT_EQ(order, 4);
+  const int n = static_cast<int>(points.size()) - 1, k = order;
+  std::vector<double> knots;
+  for (int i = 0; i <= n + k; ++i) knots.push_back(i < k ? 0 : i <= n ? i - k + 1 : n - k + 2);
+  const geometry::BSplineCurve linuxcnc({3, knots, points, {}});
+  for (int i = 0; i <= 20000; ++i) {
+    const double u = (n - k + 2) * i / 20000.0;
+    ASSERT_LE(OffCircle(linuxcnc.Point(u)), 0.001 + 1e-6) << "u = " << u;
+  }
+  // Not planar: refused with the pass named.
+  const geometry::CurvePath tilted(
+      geometry::BSplineCurve({1, {0, 0, 1, 1}, {Vector3d(0, 0, 0), Vector3d(10, 0, 1)}, {}}),
+      Vector3d::UnitZ());
+  const auto fs = geometry::SamplePath(tilted, 0.1, "line");
+  const auto lf = geometry::FitCubicBSpline(fs, o, "line");
+  try {
+    io::FormatLinuxcncNurbs({{&lf.bottom, nullptr, Vector3d::UnitZ()}}, 3000.0, {20.0, 5.0}, {});
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pass 1"), std::string::npos) << e.what();
+  }
+}
+
+// The comparison on a sample: every claim of issue 5's "what must hold".
+void CheckCompare(const io::Job& job, const std::string& dir) {
+  io::CompareOptions options;
+  options.exports_dir = dir;
+  const io::CompareResult r = io::RunCompare(job, options);
+  const auto machine = kinematics::LoadMachineFile(job.machine_file);
+  ASSERT_EQ(r.variants.size(),
+            job.compare.g1_tolerances_mm.size() + job.compare.bspline_tolerances_mm.size() + 1);
+  for (const auto& v : r.variants) {
+    SCOPED_TRACE(v.name);
+    EXPECT_TRUE(v.verify.Passed()) << v.verify.worst;
+    EXPECT_LE(v.verify.worst_ratio, 1.0);
+    if (v.kind == io::VariantResult::Kind::kExact) {
+      EXPECT_LE(v.motion_deviation_mm, 1e-6);
+      EXPECT_LE(v.motion_axis_deviation_deg, 1e-6);
+      continue;
+    }
+    EXPECT_LE(v.export_deviation_mm, v.tolerance_mm);
+    EXPECT_LE(v.export_axis_deviation_deg, job.compare.orientation_tol_deg);
+    EXPECT_GT(v.blocks, 0);
+    if (v.kind == io::VariantResult::Kind::kBSpline) {
+      // The B-spline variant is planned with the exact run's links: the motion's deviation is the
+      // export's (the interpolator adds nothing).
+      EXPECT_NEAR(v.motion_deviation_mm, v.export_deviation_mm, 0.1 * v.tolerance_mm);
+      for (int k = 1; k <= r.passes; ++k) {
+        const std::string file = fmt::format("{}/{}_bspline_{:g}um_pass{:02}.toml", dir, job.name,
+                                             v.tolerance_mm * 1e3, k);
+        const io::CurveFile back = io::LoadCurveFile(file);
+        EXPECT_EQ(back.bottom.Degree(), 3);
+        EXPECT_EQ(back.top.has_value(),
+                  job.surface->orientation.kind == strategies::Orientation::Kind::kTiltYaw);
+      }
+      continue;
+    }
+    // G1: the program read back is the program planned, and plans to the same time.
+    const std::string file =
+        fmt::format("{}/{}_g1_{:g}um.ngc", dir, job.name, v.tolerance_mm * 1e3);
+    const io::GcodeProgram back = io::ReadGcode(file);
+    io::GcodeOptions go;
+    go.corners = job.compare.corners;
+    go.rapid_feed_mm_s =
+        job.surface->link_feed_mm_s > 0 ? job.surface->link_feed_mm_s : job.vpop.feed_mm_s;
+    const io::GcodePlan plan = io::BuildGcodePlan(back, *machine, job.vpop, go);
+    const interp::ProgramResult program = interp::PlanProgram(plan.segments, *machine);
+    io::TableSink sink(*machine, job.vpop.period_s);
+    for (const auto& sp : program.setpoints) sink.Accept(sp);
+    EXPECT_EQ(interp::Verify(sink.Table(), *machine).motion_time_s, v.motion_time_s);
+    long g1 = 0;
+    for (const auto& m : back.moves) g1 += m.kind == io::GcodeMove::Kind::kLinear;
+    EXPECT_EQ(g1, v.blocks);
+  }
+  // Tighter exports are no farther.
+  EXPECT_LE(r.variants[1].export_deviation_mm, r.variants[0].export_deviation_mm);
+  EXPECT_LE(r.variants[3].export_deviation_mm, r.variants[2].export_deviation_mm);
+}
+
+TEST(Compare, FiveAxisSample) {
+  const io::Job job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
+  const std::string dir = testing::TempDir() + "dtis_compare_5x";
+  CheckCompare(job, dir);
+  // The 5-axis exports carry the tool axis: the curve files are bottom/top pairs, the Siemens
+  // program uses TRAORI and ORICURVE.
+  const io::CurveFile pair =
+      io::LoadCurveFile(dir + "/surface_tilt10_xyzac_bspline_1um_pass01.toml");
+  EXPECT_TRUE(pair.top.has_value());
+  const std::string siemens = ReadFile(dir + "/surface_tilt10_xyzac_bspline_1um.mpf");
+  EXPECT_NE(siemens.find("ORICURVE"), std::string::npos);
+  EXPECT_NE(siemens.find("XH="), std::string::npos);
+  EXPECT_NE(siemens.find("BSPLINE SD=3"), std::string::npos);
+}
+
+TEST(Compare, ThreeAxisSampleFirstPasses) {
+  const std::string path = test::Source("samples/jobs/surface_plane_cl_3axis.toml");
+  std::string text = ReadFile(path);
+  text += "\n";
+  text.insert(text.find("[link]"), "max_passes = 2\n\n");
+  const io::Job job = io::ParseJob(text, path);
+  ASSERT_EQ(job.surface->strategy.max_passes, 2);
+  CheckCompare(job, testing::TempDir() + "dtis_compare_3x");
+}
+
+// Two atomic outputs open at once (the tables, a run's setpoints and limiters) each keep their own
+// text: they once shared one stdio buffer.
+TEST(Exports, TwoOutputsOpenAtOnceStayApart) {
+  const io::Job job = io::LoadJob(test::Source("samples/jobs/line.toml"));
+  const io::RunResult r = io::RunJob(job);
+  const std::string dir = testing::TempDir();
+  io::WriteRunOutputs(job, r, dir + "dtis_two_sp.csv", dir + "dtis_two_lim.csv");
+  const auto table = io::ReadSetpoints(dir + "dtis_two_sp.csv");
+  EXPECT_EQ(table.t.size(), r.table.t.size());
+  const std::string limiters = ReadFile(dir + "dtis_two_lim.csv");
+  EXPECT_EQ(limiters.rfind("t,s,feed,limiter,axis\n", 0), 0u);
+  EXPECT_EQ(static_cast<std::size_t>(std::count(limiters.begin(), limiters.end(), '\n')),
+            r.limiters.size() + 1);
+}
+
+TEST(Compare, OnlySurfaceJobs) {
+  EXPECT_THROW(io::ParseJob("machine = \"m.toml\"\nfeed_mm_min = 100\n[path]\nkind = \"line\"\n"
+                            "from = [0, 0, 0]\nto = [1, 0, 0]\n[compare]\n",
+                            "x.toml"),
+               Error);
+}
+
+}  // namespace
+}  // namespace dtis
