@@ -10,6 +10,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/path_fit.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/gcode_program.hpp"
@@ -25,12 +26,6 @@ using test::Cartesian;
 
 using Eigen::Vector3d;
 
-double DistanceToSegment(const Vector3d& x, const Vector3d& a, const Vector3d& b) {
-  const Vector3d d = b - a;
-  const double t = std::clamp((x - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
-  return (x - (a + t * d)).norm();
-}
-
 // The largest distance of the smoothed tip from the programmed tip polyline, and of the tool
 // axis (the line through the tip, near height h) from the programmed top polyline, sampled every
 // `step` mm of the path.
@@ -39,7 +34,7 @@ std::pair<double, double> Deviation(const geometry::G1Path& path, const std::vec
   const auto to_polyline = [](const Vector3d& x, const std::vector<Vector3d>& line) {
     double d = INFINITY;
     for (std::size_t k = 0; k + 1 < line.size(); ++k) {
-      d = std::min(d, DistanceToSegment(x, line[k], line[k + 1]));
+      d = std::min(d, geometry::DistanceToSegment(x, line[k], line[k + 1]));
     }
     return d;
   };

@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
 
 namespace dtis::geometry {
@@ -92,10 +93,6 @@ double ArcSweep(const Vector3d& r0, const Vector3d& r1, bool clockwise) {
   if (clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
   if (!clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
   return sweep;
-}
-
-double Angle(const Vector3d& a, const Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 }  // namespace

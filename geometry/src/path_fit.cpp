@@ -8,9 +8,9 @@
 #include <cmath>
 #include <limits>
 #include <memory>
-#include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/angle.hpp"
 
 namespace dtis::geometry {
 namespace {
@@ -21,10 +21,6 @@ constexpr double kMargin = 0.98;
 constexpr int kDegree = 3;
 
 }  // namespace
-
-double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi;
-}
 
 double DistanceToSegment(const Eigen::Vector3d& x, const Eigen::Vector3d& a,
                          const Eigen::Vector3d& b, double* t) {
@@ -67,7 +63,6 @@ std::vector<std::size_t> ChordalVertices(const PathSamples& samples,
   const std::size_t last = samples.Size() - 1;
   const double tip_tol = kMargin * tolerance.tip_mm;
   const double axis_tol = kMargin * tolerance.axis_deg;
-  const double h = tolerance.top_height_mm;
   const auto fits = [&](std::size_t i, std::size_t j) {
     const Eigen::Vector3d& a = samples.tip[i];
     const Eigen::Vector3d& b = samples.tip[j];
@@ -75,8 +70,8 @@ std::vector<std::size_t> ChordalVertices(const PathSamples& samples,
       double t = 0.0;
       if (DistanceToSegment(samples.tip[k], a, b, &t) > tip_tol) return false;
       if (samples.turning_axis) {
-        const Eigen::Vector3d axis =
-            (1 - t) * samples.axis[i] * h + t * samples.axis[j] * h;  // top - tip at t
+        // Tip and top interpolated alike: top - tip = h ((1 - t) axis_i + t axis_j).
+        const Eigen::Vector3d axis = (1 - t) * samples.axis[i] + t * samples.axis[j];
         if (AngleDeg(axis, samples.axis[k]) > axis_tol) return false;
       }
     }
@@ -250,13 +245,9 @@ BSplineFit FitCubicBSpline(const PathSamples& samples, const BSplineFitOptions& 
     const std::size_t n_spans = knots.size() - 2 * kDegree - 1;
     std::vector<bool> out(n_spans, false);
     std::vector<std::size_t> count(n_spans, 0);
+    std::size_t span = 0;  // the knot span of sample i: the samples are in parameter order
     for (std::size_t i = 0; i < m; ++i) {
-      const std::size_t span = static_cast<std::size_t>(
-          std::clamp(static_cast<int>(std::upper_bound(knots.begin() + kDegree,
-                                                       knots.end() - kDegree - 1, t[i]) -
-                                      knots.begin()) -
-                         kDegree - 1,
-                     0, static_cast<int>(n_spans) - 1));
+      while (span + 1 < n_spans && t[i] >= knots[kDegree + span + 1]) ++span;
       ++count[span];
       const double u = ClosestOnCurve(fit.bottom, samples.tip[i], t[i]);
       const Eigen::Vector3d foot = fit.bottom.Point(u);

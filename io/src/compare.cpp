@@ -5,15 +5,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <array>
 #include <chrono>
-#include <cmath>
 #include <filesystem>
 #include <map>
 #include <memory>
-#include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
 #include "dtis/geometry/g1_path.hpp"
 #include "dtis/geometry/path_fit.hpp"
@@ -48,19 +46,11 @@ void ForEachPass(int passes, F f) {
   tbb::parallel_for(0, passes, [&f](int k) { f(static_cast<std::size_t>(k)); });
 }
 
-// The tool-axis side of a G-code move: its rotary words through the machine's forward transform.
-Pose MovePose(const GcodeMove& move, const Machine& machine) {
-  AxisVector q = AxisVector::Zero(machine.AxisCount());
-  const auto axes = machine.Axes();
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    if (!axes[i].rotary) continue;
-    const int r = axes[i].name.size() == 1 ? axes[i].name[0] - 'A' : -1;
-    if (r >= 0 && r < 3) {
-      q[static_cast<Eigen::Index>(i)] =
-          move.rotary[static_cast<std::size_t>(r)] * std::numbers::pi / 180.0;
-    }
-  }
-  return {move.to, machine.Forward(q).axis};
+// The rows [first, end) of segment `seg` of a program.
+std::pair<long, long> SegmentRows(const interp::ProgramResult& program, std::size_t seg) {
+  const long end = seg + 1 < program.first_row.size() ? program.first_row[seg + 1]
+                                                      : static_cast<long>(program.setpoints.size());
+  return {program.first_row[seg], end};
 }
 
 // The share of pass periods each axis constraint decided, largest first: "Z jerk 18.5%, ...".
@@ -70,10 +60,8 @@ std::string LimitingAxes(const interp::ProgramResult& program, const std::vector
   long total = 0;
   for (std::size_t seg = 0; seg < pass_of.size(); ++seg) {
     if (pass_of[seg] < 0) continue;
-    const long end = seg + 1 < program.first_row.size()
-                         ? program.first_row[seg + 1]
-                         : static_cast<long>(program.setpoints.size());
-    for (long r = program.first_row[seg]; r < end; ++r) {
+    const auto [first, end] = SegmentRows(program, seg);
+    for (long r = first; r < end; ++r) {
       const interp::LimiterId& l = program.setpoints[static_cast<std::size_t>(r)].limiter;
       ++total;
       if (l.axis >= 0) ++count[{l.axis, static_cast<int>(l.kind)}];
@@ -111,11 +99,9 @@ void MotionDeviation(const interp::ProgramResult& program, const std::vector<int
     const std::size_t seg = segment_of_pass[k];
     if (seg == pass_of.size()) return;
     const geometry::PathProjector projector(*exact[k], samples[k]);
-    const long end = seg + 1 < program.first_row.size()
-                         ? program.first_row[seg + 1]
-                         : static_cast<long>(program.setpoints.size());
+    const auto [first, end] = SegmentRows(program, seg);
     std::size_t hint = 0;
-    for (long r = program.first_row[seg]; r < end; ++r) {
+    for (long r = first; r < end; ++r) {
       const Pose pose = machine.Forward(program.setpoints[static_cast<std::size_t>(r)].q);
       const auto foot = projector.Project(pose.tip, &hint);
       dev[k] = std::max(dev[k], foot.distance);
@@ -124,11 +110,6 @@ void MotionDeviation(const interp::ProgramResult& program, const std::vector<int
   });
   v->motion_deviation_mm = *std::max_element(dev.begin(), dev.end());
   v->motion_axis_deviation_deg = *std::max_element(ang.begin(), ang.end());
-}
-
-// The exact pose halfway between samples i and i + 1: points the exports were not made from.
-PathSample Between(const PathSource& path, const PathSamples& s, std::size_t i) {
-  return path.At(s.state[i], 0.5 * (s.s[i] + s.s[i + 1]));
 }
 
 void Finish(const interp::ProgramResult& program, const std::vector<int>& pass_of,
@@ -158,6 +139,9 @@ struct Context {
   const SurfaceSetup& setup;
   std::vector<const PathSource*> exact;
   std::vector<PathSamples> samples;
+  // Per pass, the exact pose halfway between samples i and i + 1: points the exports were not
+  // made from, where their deviation is measured.
+  std::vector<std::vector<Pose>> between;
   RunOptions run;
   std::string stem;  // exports_dir/job name
 };
@@ -219,35 +203,32 @@ VariantResult G1Variant(const Context& c, double tol) {
   // The export's deviation, at the exact points between samples (to their chord) and at the chords'
   // quarter points (to the exact path). The polyline is the program's, as rounded in the text.
   std::vector<std::vector<Pose>> written;
+  const GcodeToolAxis axis_of(g.program, c.machine);
   const auto& moves = g.program.moves;
   for (std::size_t m = 1; m < moves.size(); ++m) {
     if (moves[m].kind != GcodeMove::Kind::kLinear) continue;
     if (moves[m - 1].kind != GcodeMove::Kind::kLinear) {
       written.emplace_back();
-      written.back().push_back(MovePose(moves[m - 1], c.machine));
+      written.back().push_back({moves[m - 1].to, axis_of(moves[m - 1])});
     }
-    written.back().push_back(MovePose(moves[m], c.machine));
+    written.back().push_back({moves[m].to, axis_of(moves[m])});
   }
   std::vector<double> dev(n, 0.0), ang(n, 0.0);
-  const double h = et.top_height_mm;
   ForEachPass(static_cast<int>(n), [&](std::size_t k) {
     const PathSamples& s = c.samples[k];
     const auto& w = written[k];
     const auto& vx = vertices[k];
+    // Tip and top interpolated alike: top - tip = h ((1 - t) axis_j + t axis_j+1).
     const auto axis_at = [&](std::size_t j, double t) -> Eigen::Vector3d {
-      const Eigen::Vector3d tip = (1 - t) * w[j].tip + t * w[j + 1].tip;
-      const Eigen::Vector3d top =
-          (1 - t) * (w[j].tip + h * w[j].axis) + t * (w[j + 1].tip + h * w[j + 1].axis);
-      return (top - tip).normalized();
+      return (1 - t) * w[j].axis + t * w[j + 1].axis;
     };
     std::size_t j = 0;
     for (std::size_t i = 0; i + 1 < s.Size(); ++i) {
       while (j + 2 < vx.size() && vx[j + 1] <= i) ++j;
-      const PathSample e = Between(*c.exact[k], s, i);
+      const Pose& e = c.between[k][i];
       double t = 0.0;
-      dev[k] =
-          std::max(dev[k], geometry::DistanceToSegment(e.pose.tip, w[j].tip, w[j + 1].tip, &t));
-      ang[k] = std::max(ang[k], AngleDeg(axis_at(j, t), e.pose.axis));
+      dev[k] = std::max(dev[k], geometry::DistanceToSegment(e.tip, w[j].tip, w[j + 1].tip, &t));
+      ang[k] = std::max(ang[k], AngleDeg(axis_at(j, t), e.axis));
     }
     const geometry::PathProjector projector(*c.exact[k], s);
     std::size_t hint = 0;
@@ -295,19 +276,17 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
   if (!c.stem.empty()) {
     const std::string base = fmt::format("{}_bspline_{}", c.stem, FileMicrons(tol));
     for (std::size_t k = 0; k < n; ++k) {
-      WriteText(
-          fmt::format("{}_pass{:02}.toml", base, k + 1),
-          FormatCurveFile(spline_passes[k],
-                          {fmt::format("dtis B-spline export of job {}, pass {} of {}, "
-                                       "tolerance {} mm{}",
-                                       c.job.name, k + 1, n, tol,
-                                       spline_passes[k].top
-                                           ? " (5-axis bottom/top pair, "
-                                             "top curve " +
-                                                 fmt::format("{:g}", fo.tolerance.top_height_mm) +
-                                                 " mm up the tool axis)"
-                                           : "")}),
-          &v);
+      const std::string pair =
+          spline_passes[k].top
+              ? fmt::format(" (5-axis bottom/top pair, top curve {:g} mm up the tool axis)",
+                            fo.tolerance.top_height_mm)
+              : "";
+      WriteText(fmt::format("{}_pass{:02}.toml", base, k + 1),
+                FormatCurveFile(spline_passes[k],
+                                {fmt::format("dtis B-spline export of job {}, pass {} of {}, "
+                                             "tolerance {} mm{}",
+                                             c.job.name, k + 1, n, tol, pair)}),
+                &v);
     }
     WriteText(base + ".mpf",
               FormatSiemensBspline(
@@ -318,15 +297,7 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
                    "manual; not run on a controller by dtis)"}),
               &v);
     // LinuxCNC's G5.2 is XY only, with uniform knots: a separate fit, for planar passes.
-    bool planar = true;
-    for (std::size_t k = 0; k < n && planar; ++k) {
-      const PathSamples& s = c.samples[k];
-      planar = !s.turning_axis && (s.axis.front() - Eigen::Vector3d::UnitZ()).norm() < 1e-12;
-      for (std::size_t i = 0; i < s.Size() && planar; ++i) {
-        planar = std::abs(s.tip[i].z() - s.tip.front().z()) <= 1e-9;
-      }
-    }
-    if (planar) {
+    if (PlanarXY(spline_passes, 1e-9)) {
       geometry::BSplineFitOptions uo = fo;
       uo.uniform_knots = true;
       std::vector<std::unique_ptr<geometry::BSplineFit>> uniform(n);
@@ -370,10 +341,10 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
     std::size_t hint = 0;
     for (std::size_t i = 0; i + 1 < s.Size(); ++i) {
       const double mid = 0.5 * (s.s[i] + s.s[i + 1]);
-      const PathSample e = Between(*c.exact[k], s, i);
-      const double u = geometry::ClosestOnCurve(f.bottom, e.pose.tip, mid);
-      dev[k] = std::max(dev[k], (f.bottom.Point(u) - e.pose.tip).norm());
-      ang[k] = std::max(ang[k], AngleDeg(axis_at(u), e.pose.axis));
+      const Pose& e = c.between[k][i];
+      const double u = geometry::ClosestOnCurve(f.bottom, e.tip, mid);
+      dev[k] = std::max(dev[k], (f.bottom.Point(u) - e.tip).norm());
+      ang[k] = std::max(ang[k], AngleDeg(axis_at(u), e.axis));
       const auto foot = projector.Project(f.bottom.Point(mid), &hint);
       dev[k] = std::max(dev[k], foot.distance);
       ang[k] = std::max(ang[k], AngleDeg(axis_at(mid), foot.pose.axis));
@@ -410,7 +381,7 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   const auto machine = kinematics::LoadMachineFile(job.machine_file);
   const SurfaceSetup setup = SetUpSurface(job);
   const CompareSpec& spec = job.compare;
-  Context c{job, options, *machine, setup, {}, {}, {}, {}};
+  Context c{job, options, *machine, setup, {}, {}, {}, {}, {}};
   c.run.threads = options.threads;
   CompareResult r;
   r.job = job.name;
@@ -422,9 +393,13 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
     r.path_length_mm += *p->Length();
   }
   c.samples.resize(c.exact.size());
+  c.between.resize(c.exact.size());
   ForEachPass(r.passes, [&](std::size_t k) {
-    c.samples[k] = geometry::SamplePath(*c.exact[k], spec.sample_step_mm,
-                                        fmt::format("{}: pass {}", job.file, k + 1));
+    const PathSamples& s = c.samples[k] = geometry::SamplePath(
+        *c.exact[k], spec.sample_step_mm, fmt::format("{}: pass {}", job.file, k + 1));
+    for (std::size_t i = 0; i + 1 < s.Size(); ++i) {
+      c.between[k].push_back(c.exact[k]->At(s.state[i], 0.5 * (s.s[i] + s.s[i + 1])).pose);
+    }
   });
   if (!options.exports_dir.empty()) {
     std::filesystem::create_directories(options.exports_dir);

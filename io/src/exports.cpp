@@ -10,17 +10,15 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/gcode_program.hpp"
 
 namespace dtis::io {
 namespace {
 
-// The double the 6-decimal text of x reads back as.
-double Rounded(double x) {
-  const std::string text = fmt::format("{:.6f}", x);
-  return std::strtod(text.c_str(), nullptr);
-}
-
 std::string Number(double x) { return fmt::format("{:.6f}", x); }
+
+// The double the text of x reads back as.
+double Rounded(double x) { return std::strtod(Number(x).c_str(), nullptr); }
 
 // Comment lines; in ( ) comments, which do not nest, parentheses become brackets.
 void Comments(const std::vector<std::string>& header, const char* open, const char* close,
@@ -34,16 +32,17 @@ void Comments(const std::vector<std::string>& header, const char* open, const ch
   }
 }
 
-// The index of each rotary word (A, B, C) among the machine's axes, or -1.
-std::array<int, 3> RotaryIndex(const Machine& machine) {
-  std::array<int, 3> index{-1, -1, -1};
-  const auto axes = machine.Axes();
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    if (!axes[i].rotary || axes[i].name.size() != 1) continue;
-    const int k = axes[i].name[0] - 'A';
-    if (k >= 0 && k < 3) index[static_cast<std::size_t>(k)] = static_cast<int>(i);
+// G0 blocks from `from` (null: nowhere yet, the program's first block) to `to` through the links'
+// waypoints (geometry::LinkWaypoints, as the exact run links its passes): `block(pose)` writes one.
+template <class Block>
+void LinkBlocks(const Pose* from, const Pose& to, const LinkSpec& links, Block block) {
+  if (!from) {
+    block(to);
+    return;
   }
-  return index;
+  const std::vector<Pose> way =
+      geometry::LinkWaypoints(*from, to, links.safe_z_mm, links.clearance_mm);
+  for (std::size_t w = 1; w < way.size(); ++w) block(way[w]);
 }
 
 }  // namespace
@@ -55,8 +54,7 @@ GcodeExport ExportG1(const std::vector<std::vector<Pose>>& passes, const Machine
   out.program.file = file_name;
   Comments(header, "(", ")", &out.text);
   out.text += "G21 G90 G94 G17\n";
-  int line = static_cast<int>(header.size()) + 1;
-  const std::array<int, 3> rotary = RotaryIndex(machine);
+  const std::array<int, 3> rotary = RotaryWordAxes(machine);
   for (int k = 0; k < 3; ++k) out.program.uses_rotary[static_cast<std::size_t>(k)] = rotary[k] >= 0;
   AxisVector q, previous;
   bool have_previous = false;
@@ -83,24 +81,18 @@ GcodeExport ExportG1(const std::vector<std::vector<Pose>>& passes, const Machine
       move.feed_mm_min = Rounded(feed_mm_min);
       if (with_feed) text += fmt::format(" F{}", Number(move.feed_mm_min));
     }
-    ++line;
-    move.line = line;
+    // 1-based: the header's comment lines, the G21 line, then one line per move.
+    move.line = static_cast<int>(header.size() + out.program.moves.size()) + 2;
     out.text += text + "\n";
     out.program.moves.push_back(move);
   };
   for (std::size_t p = 0; p < passes.size(); ++p) {
     const auto& poses = passes[p];
     if (poses.size() < 2) throw Error("{}: pass {} has fewer than 2 poses", file_name, p + 1);
-    if (p == 0) {
-      emit(GcodeMove::Kind::kRapid, poses.front(), false, "pass 1 start");
-    } else {
-      const std::vector<Pose> way = geometry::LinkWaypoints(passes[p - 1].back(), poses.front(),
-                                                            links.safe_z_mm, links.clearance_mm);
-      for (std::size_t w = 1; w < way.size(); ++w) {
-        emit(GcodeMove::Kind::kRapid, way[w], false,
-             fmt::format("link from pass {} to pass {}", p, p + 1));
-      }
-    }
+    const std::string where =
+        p == 0 ? "pass 1 start" : fmt::format("link from pass {} to pass {}", p, p + 1);
+    LinkBlocks(p == 0 ? nullptr : &passes[p - 1].back(), poses.front(), links,
+               [&](const Pose& pose) { emit(GcodeMove::Kind::kRapid, pose, false, where); });
     for (std::size_t v = 1; v < poses.size(); ++v) {
       emit(GcodeMove::Kind::kLinear, poses[v], v == 1, fmt::format("pass {}, block {}", p + 1, v));
     }
@@ -136,18 +128,12 @@ Pose EndPose(const SplinePass& pass, bool end) {
   return pose;
 }
 
-// G0 blocks through the links' waypoints from the end of pass p - 1 to the start of pass p (or to
-// the start of pass 0): `block(pose)` writes one.
+// G0 blocks from the end of pass p - 1 to the start of pass p (p = 0: to the start of pass 0).
 template <class Block>
 void LinkBlocks(const std::vector<SplinePass>& passes, std::size_t p, const LinkSpec& links,
                 Block block) {
-  if (p == 0) {
-    block(EndPose(passes[0], false));
-    return;
-  }
-  const std::vector<Pose> way = geometry::LinkWaypoints(
-      EndPose(passes[p - 1], true), EndPose(passes[p], false), links.safe_z_mm, links.clearance_mm);
-  for (std::size_t w = 1; w < way.size(); ++w) block(way[w]);
+  const Pose end = p == 0 ? Pose{} : EndPose(passes[p - 1], true);
+  LinkBlocks(p == 0 ? nullptr : &end, EndPose(passes[p], false), links, block);
 }
 
 }  // namespace

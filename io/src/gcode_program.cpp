@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
 
 namespace dtis::io {
@@ -14,45 +15,44 @@ namespace {
 
 using Eigen::Vector3d;
 
-// The tool axis the machine holds at the program's rotary positions (degrees).
-class AxisOf {
- public:
-  AxisOf(const GcodeProgram& program, const Machine& machine) : machine_(machine) {
-    const auto axes = machine.Axes();
-    for (int k = 0; k < 3; ++k) {
-      const char letter = static_cast<char>('A' + k);
-      index_[k] = -1;
-      for (std::size_t i = 0; i < axes.size(); ++i) {
-        if (axes[i].rotary && axes[i].name == std::string(1, letter))
-          index_[k] = static_cast<int>(i);
-      }
-      if (program.uses_rotary[static_cast<std::size_t>(k)] && index_[k] < 0) {
-        throw Error("{}: the program moves rotary axis {} but machine '{}' has none", program.file,
-                    letter, machine.Name());
-      }
-    }
-  }
-  Vector3d operator()(const GcodeMove& m) const {
-    AxisVector q = AxisVector::Zero(machine_.AxisCount());
-    for (int k = 0; k < 3; ++k) {
-      if (index_[k] >= 0)
-        q[index_[k]] = m.rotary[static_cast<std::size_t>(k)] * std::numbers::pi / 180.0;
-    }
-    return machine_.Forward(q).axis;
-  }
-
- private:
-  const Machine& machine_;
-  int index_[3];
-};
-
 }  // namespace
+
+std::array<int, 3> RotaryWordAxes(const Machine& machine) {
+  std::array<int, 3> index{-1, -1, -1};
+  const auto axes = machine.Axes();
+  for (int k = 0; k < 3; ++k) {
+    for (std::size_t i = 0; i < axes.size(); ++i) {
+      if (axes[i].rotary && axes[i].name == std::string(1, static_cast<char>('A' + k))) {
+        index[static_cast<std::size_t>(k)] = static_cast<int>(i);
+      }
+    }
+  }
+  return index;
+}
+
+GcodeToolAxis::GcodeToolAxis(const GcodeProgram& program, const Machine& machine)
+    : machine_(machine), index_(RotaryWordAxes(machine)) {
+  for (std::size_t k = 0; k < 3; ++k) {
+    if (program.uses_rotary[k] && index_[k] < 0) {
+      throw Error("{}: the program moves rotary axis {} but machine '{}' has none", program.file,
+                  static_cast<char>('A' + k), machine.Name());
+    }
+  }
+}
+
+Vector3d GcodeToolAxis::operator()(const GcodeMove& m) const {
+  AxisVector q = AxisVector::Zero(machine_.AxisCount());
+  for (std::size_t k = 0; k < 3; ++k) {
+    if (index_[k] >= 0) q[index_[k]] = m.rotary[k] * std::numbers::pi / 180.0;
+  }
+  return machine_.Forward(q).axis;
+}
 
 GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
                          const interp::VpopOptions& base, const GcodeOptions& options) {
   GcodePlan plan;
   if (program.moves.empty()) throw Error("{}: the program has no moves", program.file);
-  const AxisOf axis_of(program, machine);
+  const GcodeToolAxis axis_of(program, machine);
   double rapid = options.rapid_feed_mm_s;
   if (!(rapid > 0.0)) {
     double sum = 0.0;
@@ -132,7 +132,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
         const Vector3d prev_from = chain.size() > 1 ? chain[chain.size() - 2].tip : chain_tip;
         const Vector3d out = geometry::EndTangent(prev_from, prev);
         const Vector3d in = geometry::StartTangent(tip, c);
-        const double angle = std::atan2(out.cross(in).norm(), out.dot(in));
+        const double angle = geometry::Angle(out, in);
         const bool arc = prev.kind == geometry::ChainMove::Kind::kArc ||
                          c.kind == geometry::ChainMove::Kind::kArc;
         if (arc ? angle > options.tangent_rad : angle > std::numbers::pi - 1e-6) joins = false;

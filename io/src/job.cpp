@@ -42,14 +42,13 @@ void ReadCompare(TomlTable& root, Job* job) {
   if (!job->surface)
     root.Fail("compare", "only surface jobs ([surface]) are compared with exports");
   CompareSpec& c = job->compare;
-  for (const char* key : {"g1_tolerances_mm", "bspline_tolerances_mm"}) {
+  for (auto [key, tolerances] : {std::pair{"g1_tolerances_mm", &c.g1_tolerances_mm},
+                                 std::pair{"bspline_tolerances_mm", &c.bspline_tolerances_mm}}) {
     if (!t->Has(key)) continue;
-    std::vector<double> tol = t->Numbers(key);
-    for (double v : tol) {
+    *tolerances = t->Numbers(key);
+    for (double v : *tolerances) {
       if (!(v > 0.0)) t->Fail(key, fmt::format("expected tolerances > 0 mm, got {}", v));
     }
-    (std::string_view(key) == "g1_tolerances_mm" ? c.g1_tolerances_mm : c.bspline_tolerances_mm) =
-        std::move(tol);
   }
   if (auto o = t->OptionalPositiveNumber("orientation_tol_deg")) {
     if (!(*o < 45.0)) t->Fail("orientation_tol_deg", fmt::format("expected < 45 deg, got {}", *o));

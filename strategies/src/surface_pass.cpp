@@ -8,6 +8,8 @@
 #include <cmath>
 #include <limits>
 
+#include "dtis/geometry/angle.hpp"
+
 namespace dtis::strategies {
 namespace {
 
@@ -302,7 +304,7 @@ double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, d
 }
 
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb) {
-  const double theta = std::atan2(ta.cross(tb).norm(), ta.dot(tb));
+  const double theta = geometry::Angle(ta, tb);
   const double h = 0.5 * theta;
   if (h < 1e-4) return chord * (1.0 + h * h / 6.0);
   return chord * h / std::sin(h);

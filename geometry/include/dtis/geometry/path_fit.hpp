@@ -98,9 +98,6 @@ class PathProjector {
   const PathSamples& samples_;
 };
 
-// The angle between two vectors, degrees (accurate at small angles).
-double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
-
 // Distance from x to the segment [a, b], and the segment parameter of the nearest point.
 double DistanceToSegment(const Eigen::Vector3d& x, const Eigen::Vector3d& a,
                          const Eigen::Vector3d& b, double* t = nullptr);

@@ -9,6 +9,7 @@
 // rapid, a change of feed, a junction with an arc that is not tangent, or a reversal.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +30,21 @@ struct GcodeOptions {
   double max_feed_mm_s = std::numeric_limits<double>::infinity();
   // Arcs join their neighbours without a stop when their tangents differ by at most this (rad).
   double tangent_rad = 1e-3;
+};
+
+// The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
+std::array<int, 3> RotaryWordAxes(const Machine& machine);
+
+// The tool axis the machine holds at a move's rotary words (degrees), through its forward
+// kinematics. Throws dtis::Error if the program moves a rotary axis the machine does not have.
+class GcodeToolAxis {
+ public:
+  GcodeToolAxis(const GcodeProgram& program, const Machine& machine);
+  Eigen::Vector3d operator()(const GcodeMove& move) const;
+
+ private:
+  const Machine& machine_;
+  std::array<int, 3> index_;
 };
 
 struct GcodePlan {
