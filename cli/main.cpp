@@ -1,13 +1,22 @@
 // The dtis command: parse arguments, call the libraries, print the summary and errors.
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/step_model.hpp"
@@ -16,6 +25,7 @@
 #include "dtis/io/compare.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
+#include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace {
@@ -41,8 +51,9 @@ class Progress {
 };
 
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
-        bool quiet, int threads) {
-  const dtis::io::Job job = dtis::io::LoadJob(job_path);
+        bool quiet, int threads, long horizon) {
+  dtis::io::Job job = dtis::io::LoadJob(job_path);
+  if (horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(horizon);
   std::string setpoints = !output.empty()              ? output
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
@@ -91,6 +102,129 @@ int Compare(const CompareArgs& a) {
   return 0;
 }
 
+// Set by SIGINT/SIGTERM: the stream then ends with its stop to rest.
+std::atomic<bool> g_interrupted{false};
+extern "C" void OnInterrupt(int) { g_interrupted = true; }
+
+struct StreamArgs {
+  std::string job, to = "-", record, pace = "auto", from;
+  long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
+  bool index = false, quiet = false;
+};
+
+// "X,Y,Z[,A,C]" in machine units (mm, deg), as many values as the machine has axes.
+dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine& machine) {
+  std::vector<double> values;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+      throw dtis::Error("--from: '{}' is not a number; expected {} comma-separated axis positions",
+                        item, machine.AxisCount());
+    }
+    values.push_back(v);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (static_cast<int>(values.size()) != machine.AxisCount()) {
+    throw dtis::Error("--from: {} values; machine '{}' has {} axes", values.size(), machine.Name(),
+                      machine.AxisCount());
+  }
+  dtis::AxisVector q(machine.AxisCount());
+  const auto axes = machine.Axes();
+  for (int i = 0; i < machine.AxisCount(); ++i) {
+    q[i] = axes[static_cast<std::size_t>(i)].rotary ? values[static_cast<std::size_t>(i)] *
+                                                          std::numbers::pi / 180.0
+                                                    : values[static_cast<std::size_t>(i)];
+  }
+  return q;
+}
+
+int Stream(const StreamArgs& a) {
+  const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  std::optional<dtis::AxisVector> from;
+  if (!a.from.empty()) from = ParseAxisPositions(a.from, *machine);
+  const auto segments = dtis::io::JobSegments(job, *machine, from);
+  std::optional<dtis::io::SetpointRecorder> record;
+  if (!a.record.empty()) record.emplace(a.record, *machine, job.vpop.period_s);
+
+  std::FILE* file = stdout;
+  if (a.to != "-") {
+    // A FIFO opens when halstreamer (or any reader) opens its end.
+    file = std::fopen(a.to.c_str(), "w");
+    if (!file) {
+      throw dtis::Error("{}: cannot open the stream output: {}", a.to, std::strerror(errno));
+    }
+  }
+  struct stat st {};
+  const bool paced_output = fstat(fileno(file), &st) == 0 && !S_ISREG(st.st_mode);
+  dtis::io::StreamOptions o;
+  o.period_s = job.vpop.period_s;
+  o.buffer_periods = a.buffer;
+  o.commit_horizon = a.horizon > 0 ? static_cast<std::size_t>(a.horizon)
+                     : job.vpop.commit_horizon != dtis::interp::VpopOptions{}.commit_horizon
+                         ? job.vpop.commit_horizon
+                         : dtis::io::kStreamCommitHorizon;
+  o.low_water_periods = a.low_water;
+  o.realtime = a.pace == "realtime" || (a.pace == "auto" && paced_output);
+  o.slow_planner_us = a.slow_planner_us;
+  dtis::io::HalstreamerOutput out(file, machine->AxisCount(), a.index);
+  dtis::io::Stream stream(*machine, o);
+
+  std::signal(SIGPIPE, SIG_IGN);  // a reader gone is a write error, reported
+  std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
+  std::atomic<bool> finished{false};
+  std::thread watcher([&] {
+    while (!finished) {
+      if (g_interrupted) {
+        stream.Abort();
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  dtis::io::StreamResult r;
+  try {
+    r = stream.Run(*segments, out, record ? &*record : nullptr);
+  } catch (...) {
+    finished = true;
+    watcher.join();
+    if (file != stdout) std::fclose(file);
+    throw;
+  }
+  finished = true;
+  watcher.join();
+  if (file != stdout && std::fclose(file) != 0) {
+    throw dtis::Error("{}: cannot close the stream output: {}", a.to, std::strerror(errno));
+  }
+  if (!a.quiet) {
+    std::fprintf(stderr, "stream           %s after %ld setpoints (%ld of them the stop to rest)\n",
+                 dtis::io::StreamEndName(r.end), r.rows, r.stop_rows);
+    if (!r.error.empty()) std::fprintf(stderr, "planner error    %s\n", r.error.c_str());
+    std::fprintf(stderr, "segments         %d planned, pace %s, buffer %ld periods, horizon %ld\n",
+                 r.segments, o.realtime ? "real time" : "as fast as the output takes",
+                 o.buffer_periods, static_cast<long>(o.commit_horizon));
+    std::fprintf(stderr,
+                 "underruns        %ld, rows held at rest %ld, peak queue %ld, largest hand-over "
+                 "%ld\n",
+                 stream.Status().underruns.load(), stream.Status().holds.load(), r.peak_queued,
+                 r.largest_handover);
+    std::fprintf(stderr, "compute          %.3f s planning, %.3f s wall\n", r.compute_s, r.wall_s);
+    if (r.rows >= 2) {
+      std::fprintf(stderr, "verify           worst ratio %.9f (%s), %s\n", r.verify.worst_ratio,
+                   r.verify.worst.c_str(), r.verify.Passed() ? "PASS" : "FAIL");
+    }
+    if (record) std::fprintf(stderr, "recorded         %s\n", a.record.c_str());
+  }
+  if (r.rows >= 2 && !r.verify.Passed()) return 3;
+  return r.end == dtis::io::StreamEnd::kComplete ? 0 : 5;
+}
+
 int Verify(const std::string& setpoints, const std::string& machine_file) {
   const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
   const auto table = dtis::io::ReadSetpoints(setpoints);
@@ -126,6 +260,11 @@ int main(int argc, char** argv) {
   run->add_option("--limiters", limiters,
                   "also write, per setpoint, the arc length, feed and which constraint limited it");
   run->add_flag("-q,--quiet", quiet, "print nothing on success");
+  long run_horizon = 0;
+  run->add_option("--horizon", run_horizon,
+                  "commit horizon, periods (overrides the job's): plans what `dtis stream "
+                  "--horizon` with the same value sends")
+      ->check(CLI::Range(8L, 1L << 30));
   int threads = 0;
   run->add_option("-j,--threads", threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
@@ -163,16 +302,57 @@ int main(int argc, char** argv) {
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
   verify->add_option("MACHINE", machine, "machine file (see samples/machines/)")->required();
 
+  auto* stream = app.add_subcommand(
+      "stream",
+      "Plan a job and hand each setpoint over as soon as it is final, as lines for LinuxCNC's "
+      "halstreamer (one per period: the axes in mm and degrees). Aborted (SIGINT/SIGTERM), starved "
+      "or failed streams end with a stop to rest within every axis limit. Exit 0: complete; 5: "
+      "ended early at rest; 3: the stream failed the verifier; 1: bad input.");
+  StreamArgs sa;
+  stream->add_option("JOB", sa.job, "job file (see samples/jobs/)")->required();
+  stream->add_option("--to", sa.to, "output: a file or FIFO (halstreamer's stdin), - for stdout")
+      ->capture_default_str();
+  stream->add_option("--buffer", sa.buffer, "setpoints kept ahead of the machine, periods")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  stream->add_option("--horizon", sa.horizon,
+                     "steps the planner keeps open to back-off before handing them over (default: "
+                     "the job's commit_horizon, else 256); `dtis run --horizon` with the same value "
+                     "plans the very same setpoints")
+      ->check(CLI::Range(8L, 1L << 30));
+  stream->add_option("--low-water", sa.low_water,
+                     "in real time: when the planner has nothing new and the machine holds fewer "
+                     "periods than this, play the stop (an underrun)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  stream->add_option("--pace", sa.pace,
+                     "realtime: write at the machine's pace; none: as fast as the output takes "
+                     "rows; auto: realtime unless the output is a regular file")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "realtime", "none"}));
+  stream->add_flag("--index", sa.index,
+                   "add a last column with the period number + 1 (a u32 streamer pin)");
+  stream->add_option("--record", sa.record,
+                     "also write what was streamed as a setpoint CSV (for dtis verify)");
+  stream->add_option("--from", sa.from,
+                     "where the machine is, X,Y,Z[,A,C] (mm, deg): a link leads from there to the "
+                     "job's start");
+  stream->add_option("--slow-planner-us", sa.slow_planner_us,
+                     "testing: the planner sleeps this long per setpoint (to make it fall behind)")
+      ->check(CLI::NonNegativeNumber);
+  stream->add_flag("-q,--quiet", sa.quiet, "print nothing on success");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
   try {
-    if (*run) return Run(job, output, limiters, quiet, threads);
+    if (*run) return Run(job, output, limiters, quiet, threads, run_horizon);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);
+    if (*stream) return Stream(sa);
   } catch (const dtis::Error& e) {
     std::fprintf(stderr, "dtis: error: %s\n", e.what());
     return 1;

@@ -39,24 +39,30 @@ void PlanOne(const ProgramSegment& seg, const Machine& machine, const VpopOption
 // Shifts continuous rotary axes of `rows` by whole turns so that they start at `previous`.
 // Returns false if some axis still differs (another branch).
 bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpoint>* rows) {
-  const auto axes = machine.Axes();
-  AxisVector shift = AxisVector::Zero(machine.AxisCount());
-  const AxisVector& first = rows->front().q;
-  for (int i = 0; i < machine.AxisCount(); ++i) {
-    const double d = previous[i] - first[i];
-    const double scale = 1e-9 * (1.0 + std::abs(previous[i]));
-    if (std::abs(d) <= scale) continue;
-    if (!axes[static_cast<std::size_t>(i)].continuous) return false;
-    const double turns = std::round(d / (2.0 * std::numbers::pi));
-    if (turns == 0.0 || std::abs(d - turns * 2.0 * std::numbers::pi) > 1e-9) return false;
-    shift[i] = turns * 2.0 * std::numbers::pi;
-  }
-  if (shift.isZero()) return true;
-  for (Setpoint& sp : *rows) sp.q += shift;
+  const std::optional<AxisVector> shift = TurnShift(machine, previous, rows->front().q);
+  if (!shift) return false;
+  if (shift->isZero()) return true;
+  for (Setpoint& sp : *rows) sp.q += *shift;
   return true;
 }
 
 }  // namespace
+
+std::optional<AxisVector> TurnShift(const Machine& machine, const AxisVector& previous,
+                                    const AxisVector& first) {
+  const auto axes = machine.Axes();
+  AxisVector shift = AxisVector::Zero(machine.AxisCount());
+  for (int i = 0; i < machine.AxisCount(); ++i) {
+    const double d = previous[i] - first[i];
+    const double scale = 1e-9 * (1.0 + std::abs(previous[i]));
+    if (std::abs(d) <= scale) continue;
+    if (!axes[static_cast<std::size_t>(i)].continuous) return std::nullopt;
+    const double turns = std::round(d / (2.0 * std::numbers::pi));
+    if (turns == 0.0 || std::abs(d - turns * 2.0 * std::numbers::pi) > 1e-9) return std::nullopt;
+    shift[i] = turns * 2.0 * std::numbers::pi;
+  }
+  return shift;
+}
 
 std::vector<PlannedSegment> PlanSegments(const std::vector<ProgramSegment>& segments,
                                          const Machine& machine, const ProgramOptions& options) {

@@ -22,74 +22,106 @@ VerifyReport Verify(const SetpointTable& table, const Machine& machine) {
                   table.axes[i], machine.Name(), axes[i].name);
     }
   }
-  const long n = static_cast<long>(table.Rows());
+  const std::size_t n = table.Rows();
   if (n < 2) throw Error("a setpoint sequence needs at least 2 rows, got {}", n);
-
-  VerifyReport r;
-  r.rows = n;
-  r.period_s = (table.t[static_cast<std::size_t>(n - 1)] - table.t[0]) / static_cast<double>(n - 1);
-  const double dt = r.period_s;
+  const double dt = (table.t[n - 1] - table.t[0]) / static_cast<double>(n - 1);
   if (!(dt > 0.0)) throw Error("setpoint times do not increase (period {} s)", dt);
-  for (long k = 0; k < n; ++k) {
-    const double expected = table.t[0] + static_cast<double>(k) * dt;
-    if (std::abs(table.t[static_cast<std::size_t>(k)] - expected) >
-            1e-9 * std::max(1.0, expected) ||
-        (k > 0 &&
-         !(table.t[static_cast<std::size_t>(k)] > table.t[static_cast<std::size_t>(k - 1)]))) {
-      r.uniform_period = false;
-      r.bad_period_row = k;
-      break;
+  StreamVerifier verifier(machine, dt);
+  std::vector<double> row(axes.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t i = 0; i < axes.size(); ++i) row[i] = table.columns[i][k];
+    verifier.Add(table.t[k], row.data());
+  }
+  return verifier.Report();
+}
+
+StreamVerifier::StreamVerifier(const Machine& machine, double period_s) : dt_(period_s) {
+  if (!(period_s > 0.0)) throw Error("setpoint period must be > 0, got {} s", period_s);
+  for (const Axis& axis : machine.Axes()) {
+    const double k = axis.rotary ? 180.0 / std::numbers::pi : 1.0;  // limits to file units
+    AxisState a{axis.vmax * k, axis.amax * k, axis.jmax * k, {}, {}};
+    a.check.name = axis.name;
+    axes_.push_back(a);
+  }
+}
+
+// The backward differences at `row` (Eq. 6 and 14), from the four newest values.
+void StreamVerifier::Differences(long row, AxisState* a, VerifyReport* r) const {
+  const double* x = a->x;
+  const double v = (x[0] - x[1]) / dt_;
+  const double acc = (x[0] - 2.0 * x[1] + x[2]) / (dt_ * dt_);
+  const double j = (x[0] - 3.0 * x[1] + 3.0 * x[2] - x[3]) / (dt_ * dt_ * dt_);
+  AxisCheck& c = a->check;
+  if (std::abs(v) > c.v) c.v = std::abs(v), c.v_row = row;
+  if (std::abs(acc) > c.a) c.a = std::abs(acc), c.a_row = row;
+  if (std::abs(j) > c.j) c.j = std::abs(j), c.j_row = row;
+  if (r && row <= 2 &&
+      (std::abs(v) > a->vmax || std::abs(acc) > a->amax || std::abs(j) > a->jmax)) {
+    r->starts_at_rest = false;
+  }
+}
+
+void StreamVerifier::Add(double t, const double* row) {
+  const long k = rows_++;
+  if (k == 0) t0_ = t;
+  const double expected = t0_ + static_cast<double>(k) * dt_;
+  if (uniform_ &&
+      (std::abs(t - expected) > 1e-9 * std::max(1.0, expected) || (k > 0 && !(t > last_t_)))) {
+    uniform_ = false;
+    bad_period_row_ = k;
+  }
+  last_t_ = t;
+  VerifyReport start;
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    AxisState& a = axes_[i];
+    if (k == 0) {
+      std::fill(std::begin(a.x), std::end(a.x), row[i]);  // the first row held before the file
+    } else {
+      std::copy_backward(a.x, a.x + 3, a.x + 4);
+      a.x[0] = row[i];
+    }
+    Differences(k, &a, &start);
+    if (k > 0 && a.x[0] != a.x[1]) {
+      if (first_move_ < 0 || k - 1 < first_move_) first_move_ = k - 1;
+      last_move_ = std::max(last_move_, k);
     }
   }
+  if (!start.starts_at_rest) starts_at_rest_ = false;
+}
 
-  long first_move = -1, last_move = -1;
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    const Axis& axis = axes[i];
-    const double k = axis.rotary ? 180.0 / std::numbers::pi : 1.0;  // limits to file units
-    const double vmax = axis.vmax * k, amax = axis.amax * k, jmax = axis.jmax * k;
-    const auto& x = table.columns[i];
-    AxisCheck c;
-    c.name = axis.name;
-    // Rows before the first are the first row held; two rows after the last are the last held.
-    const auto at = [&](long row) {
-      return x[static_cast<std::size_t>(std::clamp(row, 0L, n - 1))];
-    };
-    for (long row = 0; row < n + 2; ++row) {
-      const double x0 = at(row), x1 = at(row - 1), x2 = at(row - 2), x3 = at(row - 3);
-      const double v = (x0 - x1) / dt;
-      const double a = (x0 - 2.0 * x1 + x2) / (dt * dt);
-      const double j = (x0 - 3.0 * x1 + 3.0 * x2 - x3) / (dt * dt * dt);
-      if (std::abs(v) > c.v) c.v = std::abs(v), c.v_row = row;
-      if (std::abs(a) > c.a) c.a = std::abs(a), c.a_row = row;
-      if (std::abs(j) > c.j) c.j = std::abs(j), c.j_row = row;
-      if (row > 0 && row < n && x0 != x1) {
-        if (first_move < 0 || row - 1 < first_move) first_move = row - 1;
-        last_move = std::max(last_move, row);
-      }
-      if (row <= 2 && (std::abs(v) > vmax || std::abs(a) > amax || std::abs(j) > jmax)) {
-        r.starts_at_rest = false;
-      }
+VerifyReport StreamVerifier::Report() const {
+  if (rows_ < 2) throw Error("a setpoint sequence needs at least 2 rows, got {}", rows_);
+  VerifyReport r;
+  r.rows = rows_;
+  r.period_s = dt_;
+  r.uniform_period = uniform_;
+  r.bad_period_row = bad_period_row_;
+  r.starts_at_rest = starts_at_rest_;
+  for (AxisState a : axes_) {
+    const bool rest = rows_ >= 3 && a.x[0] == a.x[1] && a.x[1] == a.x[2];
+    if (!rest) r.ends_at_rest = false;
+    // Two rows after the last are the last held.
+    for (long row = rows_; row < rows_ + 2; ++row) {
+      std::copy_backward(a.x, a.x + 3, a.x + 4);
+      Differences(row, &a, row <= 2 ? &r : nullptr);
     }
-    c.v_ratio = c.v / vmax;
-    c.a_ratio = c.a / amax;
-    c.j_ratio = c.j / jmax;
+    AxisCheck c = a.check;
+    c.v_ratio = c.v / a.vmax;
+    c.a_ratio = c.a / a.amax;
+    c.j_ratio = c.j / a.jmax;
     const std::pair<double, std::string> worst[] = {
-        {c.v_ratio, fmt::format("{} velocity at t = {} s", c.name,
-                                static_cast<double>(c.v_row) * dt + table.t[0])},
+        {c.v_ratio,
+         fmt::format("{} velocity at t = {} s", c.name, static_cast<double>(c.v_row) * dt_ + t0_)},
         {c.a_ratio, fmt::format("{} acceleration at t = {} s", c.name,
-                                static_cast<double>(c.a_row) * dt + table.t[0])},
-        {c.j_ratio, fmt::format("{} jerk at t = {} s", c.name,
-                                static_cast<double>(c.j_row) * dt + table.t[0])}};
+                                static_cast<double>(c.a_row) * dt_ + t0_)},
+        {c.j_ratio,
+         fmt::format("{} jerk at t = {} s", c.name, static_cast<double>(c.j_row) * dt_ + t0_)}};
     for (const auto& [ratio, what] : worst) {
       if (ratio > r.worst_ratio || r.worst.empty()) r.worst_ratio = ratio, r.worst = what;
     }
-    if (n < 3 || x[static_cast<std::size_t>(n - 1)] != x[static_cast<std::size_t>(n - 2)] ||
-        x[static_cast<std::size_t>(n - 2)] != x[static_cast<std::size_t>(n - 3)]) {
-      r.ends_at_rest = false;
-    }
     r.axes.push_back(c);
   }
-  r.motion_time_s = first_move < 0 ? 0.0 : static_cast<double>(last_move - first_move) * dt;
+  r.motion_time_s = first_move_ < 0 ? 0.0 : static_cast<double>(last_move_ - first_move_) * dt_;
   return r;
 }
 

@@ -252,10 +252,14 @@ class Planner {
 
   // ---- back-off
   // Runs the brake law from step m until rest, or (when `pass_s` is finite) until it has carried
-  // the motion `margin` periods beyond arc length `pass_s` without an empty step.
-  bool Brake(long m, Step* first, double pass_s = INFINITY, long margin = 0);
+  // the motion `margin` periods beyond arc length `pass_s` without an empty step. `record`, when
+  // given, receives every step of the law.
+  bool Brake(long m, Step* first, double pass_s = INFINITY, long margin = 0,
+             std::vector<Step>* record = nullptr);
   void BackOff(long failed);
   void Commit(long upto);
+  // For sinks that want it: the stop to rest from the last step handed over.
+  void OfferStop();
 
   const Step& At(long g) const {
     return steps_[static_cast<std::size_t>(std::max(g, base_) - base_)];
@@ -280,6 +284,9 @@ class Planner {
   long committed_ = 0;  // steps with a global index below this were handed to the sink
   long safe_ = 0;       // latest step from which a stop to rest is proven
   long hint_ = 0;       // latest step whose brake law got past the last failure (>= safe_)
+  // The brake law's steps from step stop_from_ (a proven-safe step), for OfferStop.
+  std::vector<Step> stop_, trial_stop_;
+  long stop_from_ = -1;
   VpopSummary summary_;
   double last_stuck_s_ = -1.0;
   // Per slow point: not planned yet, planned (ascending (s, feed)), or failed (empty).
@@ -771,8 +778,9 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
 
 // Runs the brake law from step m (steps after m ignored) until rest. On success, `first` is its
 // first step.
-bool Planner::Brake(long m, Step* first, double pass_s, long margin) {
+bool Planner::Brake(long m, Step* first, double pass_s, long margin, std::vector<Step>* record) {
   ++summary_.brake_tests;
+  if (record) record->clear();
   Step ring[3] = {At(m - 2), At(m - 1), At(m)};
   int newest = 2;
   long beyond = 0;
@@ -791,6 +799,7 @@ bool Planner::Brake(long m, Step* first, double pass_s, long margin) {
     if (!Produce(h, Mode::kBrake, &next)) return false;
     next.limiter = {Limiter::kBackOff, -1};
     if (k == 0) *first = next;
+    if (record) record->push_back(next);
     newest = (newest + 1) % 3;
     ring[newest] = next;
   }
@@ -885,11 +894,51 @@ void Planner::Commit(long upto) {
     ++summary_.limited_by[static_cast<int>(step.limiter.kind)];
   }
   committed_ = std::max(committed_, upto + 1);
+  if (sink_.WantsStops()) OfferStop();
   // Keep the three latest committed steps: the history of the first open one.
   while (base_ < committed_ - 3) {
     steps_.pop_front();
     ++base_;
   }
+}
+
+// The stop from the last step handed over: the open steps up to the last proven-safe one (they
+// respect every limit), then the brake law from there to rest, then the rest held for two periods.
+// Past the last proven-safe step only the end of the path is handed over, already at rest.
+void Planner::OfferStop() {
+  std::vector<Setpoint> stop;
+  const long last = committed_ - 1;
+  const auto add = [&stop](const Step& step, long index) {
+    stop.push_back(
+        {.index = index, .s = step.s, .q = step.q, .state = step.state, .limiter = step.limiter});
+  };
+  if (last <= safe_) {
+    for (long g = committed_; g <= safe_; ++g) add(At(g), g);
+    if (stop_from_ != safe_) {
+      Step first;
+      if (!Brake(safe_, &first, INFINITY, 0, &trial_stop_)) {
+        FailAt(At(safe_),
+               "the stop law failed from a step where it had been proven (this should not "
+               "happen: please report it with the job)");
+      }
+      stop_.swap(trial_stop_);
+      stop_from_ = safe_;
+    }
+    long index = safe_;
+    for (const Step& step : stop_) add(step, ++index);
+  }
+  Setpoint rest = stop.empty() ? Setpoint{.index = last,
+                                          .s = At(last).s,
+                                          .q = At(last).q,
+                                          .state = At(last).state,
+                                          .limiter = {}}
+                               : stop.back();
+  rest.limiter = {Limiter::kRest, -1};
+  for (int k = 0; k < 2; ++k) {
+    ++rest.index;
+    stop.push_back(rest);
+  }
+  sink_.AcceptStop(stop);
 }
 
 VpopSummary Planner::Run() {
@@ -933,8 +982,12 @@ VpopSummary Planner::Run() {
       // Prove a stop from the newest step so that the old ones can be handed over.
       Step first;
       if (Last() - safe_ >= check_every) {
-        if (Brake(Last(), &first)) {
+        if (Brake(Last(), &first, INFINITY, 0, sink_.WantsStops() ? &trial_stop_ : nullptr)) {
           safe_ = hint_ = Last();
+          if (sink_.WantsStops()) {
+            stop_.swap(trial_stop_);
+            stop_from_ = safe_;
+          }
         } else {
           BackOff(Last() + 1);
         }

@@ -7,6 +7,7 @@
 
 #include <exception>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,5 +52,11 @@ std::vector<PlannedSegment> PlanSegments(const std::vector<ProgramSegment>& segm
                                          const Machine& machine, const ProgramOptions& options);
 ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
                      std::vector<PlannedSegment> planned, const Machine& machine);
+
+// How a segment that starts at `first` joins one that ended at `previous`: the whole turns to add
+// to its continuous rotary axes (zero when it starts there), or nothing when it starts elsewhere
+// (another branch, or a jump).
+std::optional<AxisVector> TurnShift(const Machine& machine, const AxisVector& previous,
+                                    const AxisVector& first);
 
 }  // namespace dtis::interp

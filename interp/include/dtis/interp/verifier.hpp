@@ -46,6 +46,33 @@ struct VerifyReport {
 // fewer than 2 rows.
 VerifyReport Verify(const SetpointTable& table, const Machine& machine);
 
+// The same checks on rows as they come, in constant memory (a stream fed to a machine). Rows are in
+// file units (mm, deg); their times must be t0 + k * period_s.
+class StreamVerifier {
+ public:
+  StreamVerifier(const Machine& machine, double period_s);
+  void Add(double t, const double* row);  // one value per axis
+  long Rows() const { return rows_; }
+  // The report so far, as if the stream ended with the last row (which Verify holds twice more).
+  // Throws dtis::Error when fewer than 2 rows were added.
+  VerifyReport Report() const;
+
+ private:
+  struct AxisState {
+    double vmax, amax, jmax;  // file units
+    double x[4];              // newest first
+    AxisCheck check;
+  };
+  void Differences(long row, AxisState* a, VerifyReport* r) const;
+  double dt_;
+  double t0_ = 0.0, last_t_ = 0.0;
+  long rows_ = 0;
+  long first_move_ = -1, last_move_ = -1;
+  bool uniform_ = true, starts_at_rest_ = true;
+  long bad_period_row_ = -1;
+  std::vector<AxisState> axes_;
+};
+
 // A human-readable report, one line per axis.
 std::string FormatReport(const VerifyReport& report);
 

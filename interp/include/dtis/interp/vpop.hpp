@@ -21,6 +21,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "dtis/core/machine.hpp"
 #include "dtis/core/path_source.hpp"
@@ -96,6 +97,14 @@ class SetpointSink {
   virtual void Accept(const Setpoint& setpoint) = 0;
   // True when the sink wants no more setpoints: planning stops after the next hand-over.
   virtual bool Done() const { return false; }
+  // For sinks that feed a running machine (DESIGN.md: the commit horizon). When WantsStops(),
+  // after every hand-over the planner offers `stop`: the rows that would follow the last setpoint
+  // handed over to bring the machine to rest within every limit along the path (the steps
+  // planned up to the last one from which a stop is proven, then the brake law, then the rest held
+  // for two periods; indices continue the sequence). Playing it instead of what comes next is
+  // always safe, whatever happens to the planner afterwards.
+  virtual bool WantsStops() const { return false; }
+  virtual void AcceptStop(const std::vector<Setpoint>& /*stop*/) {}
 };
 
 struct VpopSummary {

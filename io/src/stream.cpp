@@ -1,0 +1,574 @@
+#include "dtis/io/stream.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cerrno>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <mutex>
+#include <numbers>
+#include <thread>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/gcode_program.hpp"
+
+namespace dtis::io {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+// ---- segment sources
+
+// The first pose of a path as the planner computes it (default branch), where a link must lead.
+Pose StartPose(const PathSource& path, const Machine& machine) {
+  const PathSample s0 = path.At(path.Start(), 0.0);
+  AxisVector q;
+  const InverseResult r = machine.Inverse(s0.pose, nullptr, &q);
+  if (r.status != InverseStatus::kOk) {
+    throw Error("the start of {}: {}", path.Describe(s0.state), DescribeInverseFailure(machine, r));
+  }
+  return machine.Forward(q);
+}
+
+// Links from where the machine is to where `next` starts, when they differ.
+class Linker {
+ public:
+  Linker(const Machine& machine, interp::VpopOptions options, double clearance)
+      : machine_(machine), options_(std::move(options)), clearance_(clearance) {}
+
+  // Queues the link moves from `at` to the start of `next` (none when already there).
+  void LinkTo(const std::optional<AxisVector>& at, const PathSource& next, double safe_z,
+              const std::string& name) {
+    if (!at) return;
+    const Pose from = machine_.Forward(*at);
+    const Pose to = StartPose(next, machine_);
+    if ((from.tip - to.tip).norm() < 1e-9 && (from.axis - to.axis).norm() < 1e-12) return;
+    if (!std::isfinite(safe_z)) safe_z = std::max(from.tip.z(), to.tip.z()) + clearance_;
+    for (auto& m : geometry::LinkMoves(from, to, safe_z, clearance_)) {
+      pending_.push_back({std::shared_ptr<const PathSource>(std::move(m)), options_, name, -1});
+    }
+  }
+  std::optional<StreamSegment> Pop() {
+    if (pending_.empty()) return std::nullopt;
+    StreamSegment s = std::move(pending_.front());
+    pending_.pop_front();
+    return s;
+  }
+
+ private:
+  const Machine& machine_;
+  interp::VpopOptions options_;
+  double clearance_;
+  std::deque<StreamSegment> pending_;
+};
+
+// Paths known up front (a line, a curve, a G-code program's contours and rapids).
+class ListSegments final : public SegmentSource {
+ public:
+  ListSegments(std::vector<StreamSegment> list, const Machine& machine,
+               std::optional<AxisVector> from, const interp::VpopOptions& link, double clearance)
+      : list_(std::move(list)), linker_(machine, link, clearance), from_(std::move(from)) {}
+  std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
+    if (auto link = linker_.Pop()) return link;
+    if (next_ >= list_.size()) return std::nullopt;
+    if (next_ == 0 && from_ && !linked_) {
+      linked_ = true;
+      linker_.LinkTo(from_, *list_[0].path, NAN, "link to the start");
+      if (auto link = linker_.Pop()) return link;
+    }
+    (void)at;
+    return list_[next_++];
+  }
+
+ private:
+  std::vector<StreamSegment> list_;
+  std::size_t next_ = 0;
+  Linker linker_;
+  std::optional<AxisVector> from_;
+  bool linked_ = false;
+};
+
+// A surface job: pass 1, the links from where it really ended to pass 2, pass 2, ...
+class SurfaceSegments final : public SegmentSource {
+ public:
+  SurfaceSegments(const Job& job, const Machine& machine, std::optional<AxisVector> from)
+      : setup_(SetUpSurface(job)),
+        linker_(machine, setup_.link_options, setup_.clearance_mm),
+        from_(std::move(from)) {}
+  std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
+    if (auto link = linker_.Pop()) return link;
+    const auto& passes = setup_.passes.passes;
+    if (next_ >= passes.size()) return std::nullopt;
+    const std::size_t k = next_;
+    const std::optional<AxisVector>& here = k == 0 ? from_ : at;
+    if (!linked_to_next_) {
+      linked_to_next_ = true;
+      const std::string name = k == 0 ? std::string("link to pass 1")
+                                      : fmt::format("link from pass {} to pass {}", k, k + 1);
+      linker_.LinkTo(here, *passes[k], setup_.safe_z_mm, name);
+      if (auto link = linker_.Pop()) return link;
+    }
+    linked_to_next_ = false;
+    ++next_;
+    // The pass list owns the pass; the setup outlives every segment handed out.
+    return StreamSegment{std::shared_ptr<const PathSource>(std::shared_ptr<void>(), passes[k].get()),
+                         setup_.pass_options, fmt::format("pass {}", k + 1), static_cast<int>(k)};
+  }
+
+ private:
+  SurfaceSetup setup_;
+  Linker linker_;
+  std::optional<AxisVector> from_;
+  std::size_t next_ = 0;
+  bool linked_to_next_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machine,
+                                           const std::optional<AxisVector>& from,
+                                           double clearance_mm) {
+  if (job.interpolator != InterpolatorKind::kVpop) {
+    throw Error("{}: only VPOp jobs can be streamed (the Taylor interpolators are baselines)",
+                job.file);
+  }
+  if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from);
+  std::vector<StreamSegment> list;
+  if (job.path.kind == PathSpec::Kind::kGcode) {
+    auto plan = std::make_shared<GcodePlan>(
+        BuildGcodePlan(ReadGcode(job.path.gcode_file), machine, job.vpop, job.path.gcode));
+    for (const auto& seg : plan->segments) {
+      // Each segment shares ownership of the whole plan (its paths).
+      list.push_back({std::shared_ptr<const PathSource>(plan, seg.path), seg.options, seg.name});
+    }
+  } else {
+    list.push_back({std::shared_ptr<const PathSource>(BuildPath(job)), job.vpop, "path"});
+  }
+  return std::make_unique<ListSegments>(std::move(list), machine, from, job.vpop, clearance_mm);
+}
+
+// ---- outputs
+
+HalstreamerOutput::HalstreamerOutput(std::FILE* file, int axes, bool index_column)
+    : file_(file), axes_(axes), index_column_(index_column) {}
+
+void HalstreamerOutput::Write(const StreamRow& row) {
+  fmt::memory_buffer line;
+  for (int i = 0; i < axes_; ++i) fmt::format_to(std::back_inserter(line), "{}{}", i ? " " : "", row.q[i]);
+  if (index_column_) fmt::format_to(std::back_inserter(line), " {}", row.row + 1);
+  line.push_back('\n');
+  last_.assign(line.data(), line.size());
+  if (std::fwrite(line.data(), 1, line.size(), file_) != line.size()) {
+    throw Error("cannot write the stream: {}", std::strerror(errno));
+  }
+}
+
+void HalstreamerOutput::Flush() {
+  if (std::fflush(file_) != 0) throw Error("cannot write the stream: {}", std::strerror(errno));
+}
+
+void HalstreamerOutput::Close() {
+  if (!last_.empty()) std::fwrite(last_.data(), 1, last_.size(), file_);
+  Flush();
+}
+
+SetpointRecorder::SetpointRecorder(const std::string& path, const Machine& machine,
+                                   double period_s)
+    : file_(path), period_(period_s), axes_(machine.AxisCount()) {
+  buffer_ = "t";
+  for (const Axis& a : machine.Axes()) buffer_ += "," + a.name;
+  buffer_ += '\n';
+}
+
+void SetpointRecorder::Add(const StreamRow& row) {
+  fmt::format_to(std::back_inserter(buffer_), "{}", static_cast<double>(row.row) * period_);
+  for (int i = 0; i < axes_; ++i) fmt::format_to(std::back_inserter(buffer_), ",{}", row.q[i]);
+  buffer_ += '\n';
+  if (buffer_.size() > (1u << 16)) {
+    file_.Write(buffer_);
+    buffer_.clear();
+  }
+}
+
+void SetpointRecorder::Commit() {
+  file_.Write(buffer_);
+  buffer_.clear();
+  file_.Commit();
+}
+
+// ---- the stream
+
+const char* StreamEndName(StreamEnd end) {
+  switch (end) {
+    case StreamEnd::kComplete:
+      return "complete";
+    case StreamEnd::kAborted:
+      return "aborted";
+    case StreamEnd::kStarved:
+      return "underrun";
+    case StreamEnd::kFailed:
+      return "failed";
+  }
+  return "?";
+}
+
+namespace {
+
+// A planned row on its way to the machine. The last row of each hand-over carries the stop that
+// may follow it.
+struct Entry {
+  interp::Setpoint sp;  // global index, rotary axes unwrapped onto the previous segment
+  int segment = 0;
+  int pass = -1;
+  std::shared_ptr<const std::vector<interp::Setpoint>> stop;
+};
+
+}  // namespace
+
+struct Stream::Shared {
+  std::mutex mutex;
+  std::condition_variable ready;  // rows or the end arrived (for the feeder)
+  std::condition_variable space;  // rows left the queue, or abort (for the planner)
+  std::deque<Entry> queue;
+  bool planner_done = false;
+  std::string error;
+  double compute_s = 0.0;
+  int segments = 0;
+  long largest_handover = 0;
+};
+
+namespace {
+
+// Receives one segment's setpoints from the planner: joins them onto the rows streamed before
+// (the first row repeats where the previous segment ended; continuous rotary axes are shifted by
+// whole turns, as Stitch does) and hands them to the queue, a hand-over at a time.
+class SegmentSink final : public interp::SetpointSink {
+ public:
+  using Push = std::function<bool(std::vector<Entry>&&, std::vector<interp::Setpoint>&&)>;
+  SegmentSink(const Machine& machine, const std::optional<AxisVector>& previous, long base,
+              int segment, int pass, long slow_us, const std::atomic<bool>& abort, Push push)
+      : machine_(machine),
+        previous_(previous),
+        base_(base),
+        segment_(segment),
+        pass_(pass),
+        slow_us_(slow_us),
+        abort_(abort),
+        push_(std::move(push)),
+        shift_(AxisVector::Zero(machine.AxisCount())) {}
+
+  void Accept(const interp::Setpoint& sp) override {
+    if (sp.index == 0 && previous_) {
+      misaligned_ = !Align(sp.q);
+      return;  // the row the previous segment ended on
+    }
+    Entry e{sp, segment_, pass_, nullptr};
+    e.sp.index = base_ + sp.index;
+    e.sp.q += shift_;
+    last_q_ = e.sp.q;
+    last_index_ = e.sp.index;
+    pending_.push_back(std::move(e));
+    if (slow_us_ > 0 && !abort_) std::this_thread::sleep_for(std::chrono::microseconds(slow_us_));
+  }
+  bool WantsStops() const override { return true; }
+  void AcceptStop(const std::vector<interp::Setpoint>& stop) override {
+    if (misaligned_ || abort_) return;
+    std::vector<interp::Setpoint> rows = stop;
+    for (auto& r : rows) {
+      r.index += base_;
+      r.q += shift_;
+    }
+    if (pending_.empty()) return;  // nothing new: the stop offered before still holds
+    if (!push_(std::move(pending_), std::move(rows))) stopped_ = true;
+    pending_.clear();
+  }
+  bool Done() const override { return misaligned_ || stopped_ || abort_; }
+
+  bool Misaligned() const { return misaligned_; }
+  const std::optional<AxisVector>& LastQ() const { return last_q_; }
+  long LastIndex() const { return last_index_; }
+
+ private:
+  bool Align(const AxisVector& first) {
+    const auto axes = machine_.Axes();
+    shift_ = AxisVector::Zero(machine_.AxisCount());
+    for (int i = 0; i < machine_.AxisCount(); ++i) {
+      const double d = (*previous_)[i] - first[i];
+      if (std::abs(d) <= 1e-9 * (1.0 + std::abs((*previous_)[i]))) continue;
+      if (!axes[static_cast<std::size_t>(i)].continuous) return false;
+      const double turns = std::round(d / (2.0 * std::numbers::pi));
+      if (turns == 0.0 || std::abs(d - turns * 2.0 * std::numbers::pi) > 1e-9) return false;
+      shift_[i] = turns * 2.0 * std::numbers::pi;
+    }
+    return true;
+  }
+
+  const Machine& machine_;
+  std::optional<AxisVector> previous_;
+  long base_;
+  int segment_, pass_;
+  long slow_us_;
+  const std::atomic<bool>& abort_;
+  Push push_;
+  AxisVector shift_;
+  std::vector<Entry> pending_;
+  std::optional<AxisVector> last_q_;
+  long last_index_ = 0;
+  bool misaligned_ = false, stopped_ = false;
+};
+
+}  // namespace
+
+Stream::Stream(const Machine& machine, const StreamOptions& options)
+    : machine_(machine), o_(options), shared_(std::make_unique<Shared>()) {
+  if (!(o_.period_s > 0.0)) throw Error("stream: period must be > 0 s");
+  if (o_.buffer_periods < 1) throw Error("stream: buffer must be at least 1 period");
+  if (o_.commit_horizon < 8) throw Error("stream: commit horizon must be at least 8 periods");
+  if (o_.low_water_periods < 0 || o_.low_water_periods >= o_.buffer_periods) {
+    throw Error("stream: the low-water mark ({}) must be below the buffer ({} periods)",
+                o_.low_water_periods, o_.buffer_periods);
+  }
+}
+
+Stream::~Stream() = default;
+
+void Stream::Abort() {
+  abort_ = true;
+  std::lock_guard lock(shared_->mutex);
+  shared_->ready.notify_all();
+  shared_->space.notify_all();
+}
+
+void Stream::Pause() { paused_ = true; }
+
+void Stream::Resume() {
+  paused_ = false;
+  std::lock_guard lock(shared_->mutex);
+  shared_->space.notify_all();
+}
+
+StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecorder* record) {
+  Shared& sh = *shared_;
+  const Clock::time_point started = Clock::now();
+  // Hands a batch to the queue; waits while the queue is full. False once aborted.
+  const long capacity = std::max<long>(o_.buffer_periods, 64);
+  auto push = [&](std::vector<Entry>&& rows, std::vector<interp::Setpoint>&& stop) {
+    std::unique_lock lock(sh.mutex);
+    sh.space.wait(lock, [&] {
+      return abort_ || static_cast<long>(sh.queue.size()) < capacity;
+    });
+    if (abort_) return false;
+    sh.largest_handover = std::max(sh.largest_handover, static_cast<long>(rows.size()));
+    rows.back().stop = std::make_shared<const std::vector<interp::Setpoint>>(std::move(stop));
+    for (auto& e : rows) sh.queue.push_back(std::move(e));
+    status_.queued = static_cast<long>(sh.queue.size());
+    sh.ready.notify_all();
+    return true;
+  };
+
+  // ---- the planner thread
+  std::thread planner([&] {
+    double busy = 0.0;
+    std::string error;
+    int k = 0;
+    try {
+      std::optional<AxisVector> at;
+      long base = 0;
+      for (;; ++k) {
+        {
+          std::unique_lock lock(sh.mutex);
+          sh.space.wait(lock, [&] { return abort_ || !paused_; });
+        }
+        if (abort_) break;
+        const auto t0 = Clock::now();
+        std::optional<StreamSegment> seg = segments.Next(at);
+        if (!seg) break;
+        status_.segments_planned = k + 1;
+        interp::VpopOptions options = seg->options;
+        options.commit_horizon = o_.commit_horizon;
+        std::optional<SegmentSink> sink;
+        for (int attempt = 0; attempt < 2; ++attempt) {
+          if (attempt == 1) options.previous_q = at;
+          sink.emplace(machine_, at, base, k, seg->pass, o_.slow_planner_us, abort_, push);
+          try {
+            interp::PlanVpop(*seg->path, machine_, options, *sink);
+          } catch (const Error& e) {
+            throw Error("{}: {}", seg->name, e.what());
+          }
+          if (!sink->Misaligned()) break;
+        }
+        if (sink->Misaligned()) {
+          throw Error("{}: starts at other axis positions than where the previous segment ended: "
+                      "the path is not continuous there",
+                      seg->name);
+        }
+        busy += std::chrono::duration<double>(Clock::now() - t0).count();
+        if (abort_) break;
+        if (sink->LastQ()) {
+          at = sink->LastQ();
+          base = sink->LastIndex();
+        }
+      }
+    } catch (const Error& e) {
+      error = e.what();
+    } catch (const std::exception& e) {
+      error = fmt::format("internal error: {}", e.what());
+    }
+    std::lock_guard lock(sh.mutex);
+    sh.planner_done = true;
+    sh.error = error;
+    sh.compute_s = busy;
+    sh.segments = k;
+    sh.ready.notify_all();
+  });
+
+  // ---- the feeder (this thread)
+  StreamResult result;
+  const int n = machine_.AxisCount();
+  std::vector<bool> rotary;
+  for (const Axis& a : machine_.Axes()) rotary.push_back(a.rotary);
+  interp::StreamVerifier verifier(machine_, o_.period_s);
+  std::vector<double> units(static_cast<std::size_t>(n));
+  std::optional<Clock::time_point> t0;  // when the machine got the first row
+  long written = 0;
+  Entry last;  // the last row written
+  bool any = false;
+  long peak = 0;
+
+  const auto ahead = [&]() -> long {
+    if (auto q = out.Queued()) return *q;
+    if (!t0) return 0;
+    const double played = std::chrono::duration<double>(Clock::now() - *t0).count() / o_.period_s;
+    return std::max<long>(0, written - static_cast<long>(std::floor(played)));
+  };
+  const auto write = [&](const Entry& e) {
+    if (o_.realtime) {
+      // Stay at most buffer_periods ahead of the machine.
+      for (;;) {
+        const long a = ahead();
+        if (a < o_.buffer_periods) break;
+        if (out.Queued()) {
+          std::this_thread::sleep_for(std::chrono::duration<double>(o_.period_s / 2));
+        } else {
+          std::this_thread::sleep_until(
+              *t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                        static_cast<double>(written - o_.buffer_periods + 1) * o_.period_s)));
+        }
+      }
+    }
+    for (int i = 0; i < n; ++i) {
+      const double v = e.sp.q[i];
+      units[static_cast<std::size_t>(i)] = rotary[static_cast<std::size_t>(i)] ? v * kRadToDeg : v;
+    }
+    const StreamRow row{written, e.sp.index, e.sp.s, units.data(), e.segment};
+    out.Write(row);
+    if (record) record->Add(row);
+    verifier.Add(static_cast<double>(written) * o_.period_s, units.data());
+    if (!t0) t0 = Clock::now();
+    ++written;
+    status_.rows = written;
+    status_.segment = e.segment;
+    status_.pass = e.pass;
+    status_.s_mm = e.sp.s;
+    status_.ahead = ahead();
+    if (o_.realtime) out.Flush();
+  };
+  // The stop offered with the last row written: the rows after it, then the end.
+  const auto play_stop = [&](StreamEnd why) {
+    result.end = why;
+    if (any && last.stop) {
+      for (const auto& sp : *last.stop) {
+        Entry e{sp, last.segment, last.pass, nullptr};
+        write(e);
+        ++result.stop_rows;
+      }
+    }
+  };
+  const auto is_hold = [&](const Entry& e) {
+    if (!e.stop) return false;
+    return std::all_of(e.stop->begin(), e.stop->end(),
+                       [&](const interp::Setpoint& sp) { return sp.q == e.sp.q; });
+  };
+
+  try {
+    std::unique_lock lock(sh.mutex);
+    for (;;) {
+      const bool batch_end = !any || last.stop != nullptr;
+      if (abort_ && batch_end) {
+        lock.unlock();
+        play_stop(StreamEnd::kAborted);
+        break;
+      }
+      if (!sh.queue.empty()) {
+        Entry e = std::move(sh.queue.front());
+        sh.queue.pop_front();
+        peak = std::max(peak, static_cast<long>(sh.queue.size()) + 1);
+        status_.queued = static_cast<long>(sh.queue.size());
+        sh.space.notify_all();
+        lock.unlock();
+        write(e);
+        last = std::move(e);
+        any = true;
+        lock.lock();
+        continue;
+      }
+      if (sh.planner_done) {
+        lock.unlock();
+        if (!sh.error.empty()) {
+          result.error = sh.error;
+          play_stop(StreamEnd::kFailed);
+        } else {
+          result.end = StreamEnd::kComplete;
+        }
+        break;
+      }
+      // Nothing planned yet. Before the first row the machine waits at rest.
+      if (!o_.realtime || !any) {
+        sh.ready.wait(lock);
+        continue;
+      }
+      const long a = ahead();
+      if (a <= o_.low_water_periods) {
+        if (is_hold(last)) {  // at rest: holding is safe, wait for the planner
+          lock.unlock();
+          Entry hold = last;
+          write(hold);
+          ++status_.holds;
+          lock.lock();
+          continue;
+        }
+        lock.unlock();
+        ++status_.underruns;
+        play_stop(StreamEnd::kStarved);
+        break;
+      }
+      sh.ready.wait_for(lock, std::chrono::duration<double>(
+                                  static_cast<double>(a - o_.low_water_periods) * o_.period_s));
+    }
+  } catch (...) {
+    Abort();
+    planner.join();
+    throw;
+  }
+  if (result.end != StreamEnd::kComplete) Abort();
+  planner.join();
+  out.Close();
+
+  result.rows = written;
+  result.segments = sh.segments;
+  result.compute_s = sh.compute_s;
+  result.peak_queued = peak;
+  result.largest_handover = sh.largest_handover;
+  if (any) result.last_q = last.stop && result.stop_rows > 0 ? last.stop->back().q : last.sp.q;
+  if (written >= 2) result.verify = verifier.Report();
+  result.wall_s = std::chrono::duration<double>(Clock::now() - started).count();
+  if (record) record->Commit();
+  return result;
+}
+
+}  // namespace dtis::io

@@ -1,0 +1,288 @@
+// Streaming to a running machine (issue 6): what is streamed is what `dtis run` plans with the same
+// commit horizon, row for row; an abort, a planner that falls behind and a path that fails mid-way
+// all end with the offered stop, at rest and within every limit (checked by the verifier on the
+// rows written, and again from the recorded file); the stop law offered by the planner is itself
+// a valid continuation wherever it is taken.
+#include "dtis/io/stream.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <functional>
+#include <random>
+#include <numbers>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/setpoint_file.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis {
+namespace {
+
+// Keeps every row written, in file units; optionally calls `on_row` after each.
+class Capture final : public io::CncOutput {
+ public:
+  explicit Capture(int axes) : axes_(axes) {}
+  void Write(const io::StreamRow& row) override {
+    rows.emplace_back(row.q, row.q + axes_);
+    index.push_back(row.index);
+    if (on_row) on_row(static_cast<long>(rows.size()));
+  }
+  void Close() override { closed = true; }
+  std::vector<std::vector<double>> rows;
+  std::vector<long> index;
+  std::function<void(long)> on_row;
+  bool closed = false;
+
+ private:
+  int axes_;
+};
+
+io::Job SampleJob(const std::string& name, std::size_t horizon = io::kStreamCommitHorizon) {
+  io::Job job = io::LoadJob(test::Source("samples/jobs/" + name + ".toml"));
+  job.vpop.commit_horizon = horizon;
+  return job;
+}
+
+std::vector<std::vector<double>> RowsOf(const interp::SetpointTable& t) {
+  std::vector<std::vector<double>> rows(t.Rows());
+  for (std::size_t r = 0; r < t.Rows(); ++r) {
+    for (const auto& c : t.columns) rows[r].push_back(c[r]);
+  }
+  return rows;
+}
+
+io::StreamResult StreamJob(const io::Job& job, const Machine& machine, Capture* out,
+                           io::StreamOptions o = {}, io::Stream** handle = nullptr) {
+  o.period_s = job.vpop.period_s;
+  o.commit_horizon = job.vpop.commit_horizon;
+  io::Stream stream(machine, o);
+  if (handle) *handle = &stream;
+  const auto segments = io::JobSegments(job, machine);
+  return stream.Run(*segments, *out);
+}
+
+// Streamed = planned: the 5-axis surface sample, a G-code program (contours, corners, rapids) and
+// a 5-axis G1 program give exactly the rows `dtis run` plans with the same horizon.
+TEST(Stream, EqualsTheRunWithTheSameHorizon) {
+  for (const char* name : {"surface_tilt10_xyzac", "lock", "open_pocket_xyzac"}) {
+    SCOPED_TRACE(name);
+    const io::Job job = SampleJob(name);
+    const io::RunResult run = io::RunJob(job);
+    Capture out(run.machine->AxisCount());
+    const io::StreamResult r = StreamJob(job, *run.machine, &out);
+    EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+    EXPECT_EQ(r.stop_rows, 0);
+    EXPECT_TRUE(out.closed);
+    ASSERT_EQ(out.rows.size(), run.table.Rows());
+    EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+    EXPECT_TRUE(r.verify.Passed());
+    EXPECT_EQ(r.verify.worst_ratio, run.verify.worst_ratio);
+    EXPECT_EQ(r.verify.motion_time_s, run.verify.motion_time_s);
+  }
+}
+
+// An abort at many points of a 5-axis pass: the rows written are the planned ones up to where the
+// stop begins, then the stop brings every axis to rest within its limits.
+TEST(Stream, AbortAnywhereEndsAtRestWithinTheLimits) {
+  const io::Job job = SampleJob("surface_tilt10_xyzac", 64);
+  const io::RunResult run = io::RunJob(job);
+  const auto planned = RowsOf(run.table);
+  const long n = static_cast<long>(planned.size());
+  for (const long at : {1L, 5L, 100L, 333L, n / 2, n - 200, n - 3}) {
+    SCOPED_TRACE(at);
+    Capture out(run.machine->AxisCount());
+    io::Stream* stream = nullptr;
+    out.on_row = [&](long rows) {
+      if (rows == at) stream->Abort();
+    };
+    const io::StreamResult r = StreamJob(job, *run.machine, &out, {}, &stream);
+    ASSERT_GE(r.rows, at);
+    const long before_stop = r.rows - r.stop_rows;
+    for (long k = 0; k < before_stop; ++k) ASSERT_EQ(out.rows[k], planned[k]) << "row " << k;
+    EXPECT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+    EXPECT_TRUE(r.verify.ends_at_rest);
+    // The stop starts at the end of the hand-over the abort fell in.
+    EXPECT_LE(before_stop - at, r.largest_handover);
+    EXPECT_LE(r.largest_handover, 4 * 64);
+    // Moving when aborted: a real deceleration, not a hold.
+    if (r.end == io::StreamEnd::kAborted && before_stop >= 2 &&
+        planned[before_stop - 1] != planned[before_stop - 2]) {
+      EXPECT_GT(r.stop_rows, 2);
+    }
+  }
+}
+
+// The stop is offered after every hand-over, so it must be valid wherever it is taken: take each
+// offer in turn on the lock contour (a G1 program with corners) and verify the sequence it makes.
+class StopProbe final : public interp::SetpointSink {
+ public:
+  void Accept(const interp::Setpoint& sp) override { rows.push_back(sp); }
+  bool WantsStops() const override { return true; }
+  void AcceptStop(const std::vector<interp::Setpoint>& stop) override {
+    offers.push_back({rows.size(), stop});
+  }
+  std::vector<interp::Setpoint> rows;
+  std::vector<std::pair<std::size_t, std::vector<interp::Setpoint>>> offers;
+};
+
+TEST(Stream, EveryOfferedStopIsAValidContinuation) {
+  const io::Job job = SampleJob("trident", 32);
+  const auto machine = kinematics::LoadMachineFile(job.machine_file);
+  const auto path = io::BuildPath(job);
+  StopProbe probe;
+  interp::PlanVpop(*path, *machine, job.vpop, probe);
+  ASSERT_GT(probe.offers.size(), 20u);
+  for (const auto& [handed, stop] : probe.offers) {
+    SCOPED_TRACE(handed);
+    io::TableSink table(*machine, job.vpop.period_s);
+    for (std::size_t k = 0; k < handed; ++k) table.Accept(probe.rows[k]);
+    for (const auto& sp : stop) {
+      ASSERT_EQ(sp.index, static_cast<long>(table.Table().Rows()));  // continues the sequence
+      table.Accept(sp);
+    }
+    const interp::VerifyReport v = interp::Verify(table.Table(), *machine);
+    ASSERT_TRUE(v.Passed()) << interp::FormatReport(v);
+    // Along the path: never backwards.
+    for (std::size_t k = 1; k < stop.size(); ++k) ASSERT_GE(stop[k].s, stop[k - 1].s);
+  }
+}
+
+// A planner slower than the machine: in real time the buffer drains, and the stream ends with the
+// stop before the machine runs dry.
+TEST(Stream, AStarvedStreamEndsWithTheStop) {
+  const io::Job job = SampleJob("circle", 64);
+  const auto machine = kinematics::LoadMachineFile(job.machine_file);
+  Capture out(machine->AxisCount());
+  io::StreamOptions o;
+  o.realtime = true;
+  o.buffer_periods = 40;
+  o.low_water_periods = 10;
+  o.slow_planner_us = 3000;  // three times slower than the 1 ms period
+  const io::StreamResult r = StreamJob(job, *machine, &out, o);
+  EXPECT_EQ(r.end, io::StreamEnd::kStarved);
+  EXPECT_GT(r.stop_rows, 2);
+  EXPECT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LT(r.rows, 3000);  // far from the end of the circle
+}
+
+// A path that cannot be followed beyond some arc length: the planner throws, the stream plays the
+// stop from the last row handed over and reports the planner's message.
+class FailingLine final : public PathSource {
+ public:
+  FailingLine() : line_({0, 0, 0}, {200, 0, 0}, {0, 0, 1}) {}
+  PathState Start() const override { return line_.Start(); }
+  std::optional<double> Length() const override { return line_.Length(); }
+  PathSample At(const PathState& from, double s) const override {
+    PathSample p = line_.At(from, s);
+    if (s > 120.0) p.status = PathStatus::kNoConvergence;
+    return p;
+  }
+  std::string Describe(const PathState& state) const override { return line_.Describe(state); }
+
+ private:
+  geometry::LinePath line_;
+};
+
+class OneSegment final : public io::SegmentSource {
+ public:
+  explicit OneSegment(io::StreamSegment s) : s_(std::move(s)) {}
+  std::optional<io::StreamSegment> Next(const std::optional<AxisVector>&) override {
+    if (done_) return std::nullopt;
+    done_ = true;
+    return s_;
+  }
+
+ private:
+  io::StreamSegment s_;
+  bool done_ = false;
+};
+
+TEST(Stream, AFailingPathEndsWithTheStop) {
+  const auto machine = test::Cartesian(100.0, 2000.0, 50000.0);
+  interp::VpopOptions vo;
+  vo.feed_mm_s = 80.0;
+  OneSegment segments({std::make_shared<FailingLine>(), vo, "failing line"});
+  io::StreamOptions o;
+  o.commit_horizon = 64;
+  io::Stream stream(*machine, o);
+  Capture out(3);
+  const io::StreamResult r = stream.Run(segments, out);
+  EXPECT_EQ(r.end, io::StreamEnd::kFailed);
+  EXPECT_NE(r.error.find("failing line"), std::string::npos) << r.error;
+  EXPECT_NE(r.error.find("did not converge"), std::string::npos) << r.error;
+  EXPECT_GT(r.stop_rows, 2);
+  EXPECT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(out.rows.back()[0], 120.0);
+}
+
+// The recorded file is what was written, and `dtis verify` reads it to the same report.
+TEST(Stream, RecordReadsBackToTheSameReport) {
+  const io::Job job = SampleJob("trident", 64);
+  const auto machine = kinematics::LoadMachineFile(job.machine_file);
+  const std::string file =
+      (std::filesystem::temp_directory_path() / "dtis_stream_record_test.csv").string();
+  io::StreamResult r;
+  {
+    io::SetpointRecorder record(file, *machine, job.vpop.period_s);
+    io::StreamOptions o;
+    o.commit_horizon = 64;
+    io::Stream stream(*machine, o);
+    Capture out(machine->AxisCount());
+    const auto segments = io::JobSegments(job, *machine);
+    r = stream.Run(*segments, out, &record);
+  }
+  const interp::SetpointTable table = io::ReadSetpoints(file);
+  std::filesystem::remove(file);
+  EXPECT_EQ(static_cast<long>(table.Rows()), r.rows);
+  const interp::VerifyReport v = interp::Verify(table, *machine);
+  EXPECT_EQ(v.worst_ratio, r.verify.worst_ratio);
+  EXPECT_EQ(v.motion_time_s, r.verify.motion_time_s);
+}
+
+// The verifier now runs row by row (for streams); check it against the definition written out
+// plainly: backward differences over the rows, the first row held before and the last held after.
+TEST(Stream, RowByRowVerifierMatchesTheDefinition) {
+  const auto machine = test::Cartesian(100.0, 2000.0, 50000.0);
+  std::mt19937_64 rng(test::g_seed);
+  std::normal_distribution<double> noise(0.0, 1e-4);
+  for (int c = 0; c < 50; ++c) {
+    const long n = 2 + c * 7;
+    std::vector<std::vector<double>> x(3);
+    interp::StreamVerifier verifier(*machine, 1e-3);
+    for (long k = 0; k < n; ++k) {
+      double row[3];
+      for (int i = 0; i < 3; ++i) {
+        row[i] = (c % 5 == 0 && k == n / 2 ? 1.0 : 0.0) + (c % 3 ? k * 1e-3 * i : 0.0) + noise(rng);
+        x[static_cast<std::size_t>(i)].push_back(row[i]);
+      }
+      verifier.Add(static_cast<double>(k) * 1e-3, row);
+    }
+    const interp::VerifyReport r = verifier.Report();
+    const double dt = 1e-3;
+    for (int i = 0; i < 3; ++i) {
+      const auto& xi = x[static_cast<std::size_t>(i)];
+      const auto at = [&](long k) { return xi[static_cast<std::size_t>(std::clamp(k, 0L, n - 1))]; };
+      double v = 0, a = 0, j = 0;
+      for (long k = 0; k < n + 2; ++k) {
+        v = std::max(v, std::abs(at(k) - at(k - 1)) / dt);
+        a = std::max(a, std::abs(at(k) - 2 * at(k - 1) + at(k - 2)) / (dt * dt));
+        j = std::max(j, std::abs(at(k) - 3 * at(k - 1) + 3 * at(k - 2) - at(k - 3)) / (dt * dt * dt));
+      }
+      const auto& axis = r.axes[static_cast<std::size_t>(i)];
+      EXPECT_EQ(axis.v, v);
+      EXPECT_EQ(axis.a, a);
+      EXPECT_EQ(axis.j, j);
+      EXPECT_DOUBLE_EQ(axis.j_ratio, j / 50000.0);
+    }
+    EXPECT_EQ(r.rows, n);
+    EXPECT_FALSE(r.ends_at_rest);  // noise on every row
+    EXPECT_EQ(r.Passed(), r.worst_ratio <= 1.0 && r.starts_at_rest && r.ends_at_rest);
+  }
+}
+
+}  // namespace
+}  // namespace dtis
