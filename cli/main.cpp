@@ -24,6 +24,7 @@
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/compare.hpp"
 #include "dtis/io/job.hpp"
+#include "dtis/io/serve.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -136,9 +137,9 @@ dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine
   dtis::AxisVector q(machine.AxisCount());
   const auto axes = machine.Axes();
   for (int i = 0; i < machine.AxisCount(); ++i) {
-    q[i] = axes[static_cast<std::size_t>(i)].rotary ? values[static_cast<std::size_t>(i)] *
-                                                          std::numbers::pi / 180.0
-                                                    : values[static_cast<std::size_t>(i)];
+    q[i] = axes[static_cast<std::size_t>(i)].rotary
+               ? values[static_cast<std::size_t>(i)] * std::numbers::pi / 180.0
+               : values[static_cast<std::size_t>(i)];
   }
   return q;
 }
@@ -223,6 +224,44 @@ int Stream(const StreamArgs& a) {
   }
   if (r.rows >= 2 && !r.verify.Passed()) return 3;
   return r.end == dtis::io::StreamEnd::kComplete ? 0 : 5;
+}
+
+struct ServeArgs {
+  std::string socket, machine, to = "-", record_dir, pace = "realtime", from;
+  long buffer = 200, low_water = 20;
+  bool index = false;
+};
+
+std::string DefaultSocket() {
+  const char* runtime = std::getenv("XDG_RUNTIME_DIR");
+  return runtime ? fmt::format("{}/dtis.sock", runtime)
+                 : fmt::format("/tmp/dtis-{}.sock", getuid());
+}
+
+int Serve(const ServeArgs& a) {
+  dtis::io::ServeOptions o;
+  o.socket_path = a.socket.empty() ? DefaultSocket() : a.socket;
+  o.machine_file = a.machine;
+  o.record_dir = a.record_dir;
+  o.stream.buffer_periods = a.buffer;
+  o.stream.low_water_periods = a.low_water;
+  o.stream.realtime = a.pace == "realtime";
+  const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
+  if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
+  if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
+  std::FILE* file = stdout;
+  if (a.to != "-") {
+    file = std::fopen(a.to.c_str(), "w");
+    if (!file) {
+      throw dtis::Error("{}: cannot open the stream output: {}", a.to, std::strerror(errno));
+    }
+  }
+  std::signal(SIGPIPE, SIG_IGN);
+  dtis::io::HalstreamerOutput out(file, machine->AxisCount(), a.index);
+  std::fprintf(stderr, "dtis serve: listening on %s\n", o.socket_path.c_str());
+  dtis::io::Serve(o, out);
+  if (file != stdout) std::fclose(file);
+  return 0;
 }
 
 int Verify(const std::string& setpoints, const std::string& machine_file) {
@@ -315,19 +354,22 @@ int main(int argc, char** argv) {
   stream->add_option("--buffer", sa.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  stream->add_option("--horizon", sa.horizon,
-                     "steps the planner keeps open to back-off before handing them over (default: "
-                     "the job's commit_horizon, else 256); `dtis run --horizon` with the same value "
-                     "plans the very same setpoints")
+  stream
+      ->add_option("--horizon", sa.horizon,
+                   "steps the planner keeps open to back-off before handing them over (default: "
+                   "the job's commit_horizon, else 256); `dtis run --horizon` with the same value "
+                   "plans the very same setpoints")
       ->check(CLI::Range(8L, 1L << 30));
-  stream->add_option("--low-water", sa.low_water,
-                     "in real time: when the planner has nothing new and the machine holds fewer "
-                     "periods than this, play the stop (an underrun)")
+  stream
+      ->add_option("--low-water", sa.low_water,
+                   "in real time: when the planner has nothing new and the machine holds fewer "
+                   "periods than this, play the stop (an underrun)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  stream->add_option("--pace", sa.pace,
-                     "realtime: write at the machine's pace; none: as fast as the output takes "
-                     "rows; auto: realtime unless the output is a regular file")
+  stream
+      ->add_option("--pace", sa.pace,
+                   "realtime: write at the machine's pace; none: as fast as the output takes "
+                   "rows; auto: realtime unless the output is a regular file")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "realtime", "none"}));
   stream->add_flag("--index", sa.index,
@@ -337,10 +379,42 @@ int main(int argc, char** argv) {
   stream->add_option("--from", sa.from,
                      "where the machine is, X,Y,Z[,A,C] (mm, deg): a link leads from there to the "
                      "job's start");
-  stream->add_option("--slow-planner-us", sa.slow_planner_us,
-                     "testing: the planner sleeps this long per setpoint (to make it fall behind)")
+  stream
+      ->add_option("--slow-planner-us", sa.slow_planner_us,
+                   "testing: the planner sleeps this long per setpoint (to make it fall behind)")
       ->check(CLI::NonNegativeNumber);
   stream->add_flag("-q,--quiet", sa.quiet, "print nothing on success");
+
+  auto* serve = app.add_subcommand(
+      "serve",
+      "Stay up and stream jobs submitted over a local socket to one CNC, one after the other, each "
+      "linked from where the previous one left the machine (see `dtis send`).");
+  ServeArgs va;
+  serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
+  serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
+      ->required();
+  serve->add_option("--to", va.to, "output: a file or FIFO (halstreamer's stdin), - for stdout")
+      ->capture_default_str();
+  serve->add_option("--buffer", va.buffer, "setpoints kept ahead of the machine, periods")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  serve->add_option("--low-water", va.low_water, "underrun threshold, periods")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  serve->add_option("--pace", va.pace, "realtime or none")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"realtime", "none"}));
+  serve->add_flag("--index", va.index, "add the period number + 1 as a last column");
+  serve->add_option("--record-dir", va.record_dir, "write job-<id>.csv there: what was streamed");
+  serve->add_option("--from", va.from, "where the machine is before the first job, X,Y,Z[,A,C]");
+
+  auto* send = app.add_subcommand(
+      "send",
+      "Send one request to `dtis serve` and print the reply: {\"cmd\":\"submit\",\"job\":PATH}, "
+      "status, pause (at the end of the current segment), resume, abort (stop to rest), shutdown.");
+  std::string send_socket, request;
+  send->add_option("--socket", send_socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
+  send->add_option("REQUEST", request, "one JSON object")->required();
 
   try {
     app.parse(argc, argv);
@@ -353,6 +427,13 @@ int main(int argc, char** argv) {
     if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);
     if (*stream) return Stream(sa);
+    if (*serve) return Serve(va);
+    if (*send) {
+      const std::string reply =
+          dtis::io::SendRequest(send_socket.empty() ? DefaultSocket() : send_socket, request);
+      std::puts(reply.c_str());
+      return reply.find("\"ok\":true") != std::string::npos ? 0 : 2;
+    }
   } catch (const dtis::Error& e) {
     std::fprintf(stderr, "dtis: error: %s\n", e.what());
     return 1;

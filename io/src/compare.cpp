@@ -153,7 +153,10 @@ geometry::ExportTolerance ToleranceOf(const CompareSpec& spec, double tol) {
 
 VariantResult G1Variant(const Context& c, double tol) {
   const auto start = Clock::now();
-  VariantResult v{VariantResult::Kind::kG1, "G1 " + Microns(tol), tol};
+  VariantResult v;
+  v.kind = VariantResult::Kind::kG1;
+  v.name = "G1 " + Microns(tol);
+  v.tolerance_mm = tol;
   const CompareSpec& spec = c.job.compare;
   const std::size_t n = c.exact.size();
   const geometry::ExportTolerance et = ToleranceOf(spec, tol);
@@ -250,7 +253,10 @@ VariantResult G1Variant(const Context& c, double tol) {
 
 VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::string>* notes) {
   const auto start = Clock::now();
-  VariantResult v{VariantResult::Kind::kBSpline, "B-spline " + Microns(tol), tol};
+  VariantResult v;
+  v.kind = VariantResult::Kind::kBSpline;
+  v.name = "B-spline " + Microns(tol);
+  v.tolerance_mm = tol;
   const std::size_t n = c.exact.size();
   geometry::BSplineFitOptions fo;
   fo.tolerance = ToleranceOf(c.job.compare, tol);
@@ -359,7 +365,9 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
 
 VariantResult ExactVariant(const Context& c) {
   const auto start = Clock::now();
-  VariantResult v{VariantResult::Kind::kExact, "DTIS (exact surface)"};
+  VariantResult v;
+  v.kind = VariantResult::Kind::kExact;
+  v.name = "DTIS (exact surface)";
   const PassProgram pp = PlanPasses(c.exact, c.setup, c.machine, c.run, c.job.file);
   Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
   MotionDeviation(pp.program, pp.pass_of_segment, c.exact, c.samples, c.machine, &v);

@@ -573,7 +573,7 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   out += fmt::format("worst ratio      {:.6f} ({}){}\n", r.verify.worst_ratio, r.verify.worst,
                      r.verify.Passed() ? "" : "  ** the verifier FAILS this sequence **");
   const double rt = r.compute_s > 0 ? r.verify.motion_time_s / r.compute_s : 0.0;
-  out += fmt::format("compute time     {:.6f} s ({:.0f}x real time)\n", r.compute_s, rt);
+  out += fmt::format("compute time     {:.6f} s ({:.3g}x real time)\n", r.compute_s, rt);
   if (job.interpolator == InterpolatorKind::kVpop) {
     out += fmt::format("back-offs        {} ({} brake tests), {} evaluations\n", r.vpop.back_offs,
                        r.vpop.brake_tests, r.vpop.evaluations);

@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -14,6 +14,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/interp/program.hpp"
 #include "dtis/io/gcode_program.hpp"
 
 namespace dtis::io {
@@ -116,8 +117,9 @@ class SurfaceSegments final : public SegmentSource {
     linked_to_next_ = false;
     ++next_;
     // The pass list owns the pass; the setup outlives every segment handed out.
-    return StreamSegment{std::shared_ptr<const PathSource>(std::shared_ptr<void>(), passes[k].get()),
-                         setup_.pass_options, fmt::format("pass {}", k + 1), static_cast<int>(k)};
+    return StreamSegment{
+        std::shared_ptr<const PathSource>(std::shared_ptr<void>(), passes[k].get()),
+        setup_.pass_options, fmt::format("pass {}", k + 1), static_cast<int>(k)};
   }
 
  private:
@@ -159,7 +161,8 @@ HalstreamerOutput::HalstreamerOutput(std::FILE* file, int axes, bool index_colum
 
 void HalstreamerOutput::Write(const StreamRow& row) {
   fmt::memory_buffer line;
-  for (int i = 0; i < axes_; ++i) fmt::format_to(std::back_inserter(line), "{}{}", i ? " " : "", row.q[i]);
+  for (int i = 0; i < axes_; ++i)
+    fmt::format_to(std::back_inserter(line), "{}{}", i ? " " : "", row.q[i]);
   if (index_column_) fmt::format_to(std::back_inserter(line), " {}", row.row + 1);
   line.push_back('\n');
   last_.assign(line.data(), line.size());
@@ -177,8 +180,7 @@ void HalstreamerOutput::Close() {
   Flush();
 }
 
-SetpointRecorder::SetpointRecorder(const std::string& path, const Machine& machine,
-                                   double period_s)
+SetpointRecorder::SetpointRecorder(const std::string& path, const Machine& machine, double period_s)
     : file_(path), period_(period_s), axes_(machine.AxisCount()) {
   buffer_ = "t";
   for (const Axis& a : machine.Axes()) buffer_ += "," + a.name;
@@ -295,17 +297,9 @@ class SegmentSink final : public interp::SetpointSink {
 
  private:
   bool Align(const AxisVector& first) {
-    const auto axes = machine_.Axes();
-    shift_ = AxisVector::Zero(machine_.AxisCount());
-    for (int i = 0; i < machine_.AxisCount(); ++i) {
-      const double d = (*previous_)[i] - first[i];
-      if (std::abs(d) <= 1e-9 * (1.0 + std::abs((*previous_)[i]))) continue;
-      if (!axes[static_cast<std::size_t>(i)].continuous) return false;
-      const double turns = std::round(d / (2.0 * std::numbers::pi));
-      if (turns == 0.0 || std::abs(d - turns * 2.0 * std::numbers::pi) > 1e-9) return false;
-      shift_[i] = turns * 2.0 * std::numbers::pi;
-    }
-    return true;
+    const std::optional<AxisVector> shift = interp::TurnShift(machine_, *previous_, first);
+    if (shift) shift_ = *shift;
+    return shift.has_value();
   }
 
   const Machine& machine_;
@@ -359,9 +353,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
   const long capacity = std::max<long>(o_.buffer_periods, 64);
   auto push = [&](std::vector<Entry>&& rows, std::vector<interp::Setpoint>&& stop) {
     std::unique_lock lock(sh.mutex);
-    sh.space.wait(lock, [&] {
-      return abort_ || static_cast<long>(sh.queue.size()) < capacity;
-    });
+    sh.space.wait(lock, [&] { return abort_ || static_cast<long>(sh.queue.size()) < capacity; });
     if (abort_) return false;
     sh.largest_handover = std::max(sh.largest_handover, static_cast<long>(rows.size()));
     rows.back().stop = std::make_shared<const std::vector<interp::Setpoint>>(std::move(stop));
@@ -403,9 +395,10 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
           if (!sink->Misaligned()) break;
         }
         if (sink->Misaligned()) {
-          throw Error("{}: starts at other axis positions than where the previous segment ended: "
-                      "the path is not continuous there",
-                      seg->name);
+          throw Error(
+              "{}: starts at other axis positions than where the previous segment ended: "
+              "the path is not continuous there",
+              seg->name);
         }
         busy += std::chrono::duration<double>(Clock::now() - t0).count();
         if (abort_) break;
@@ -423,7 +416,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
     sh.planner_done = true;
     sh.error = error;
     sh.compute_s = busy;
-    sh.segments = k;
+    sh.segments = status_.segments_planned;
     sh.ready.notify_all();
   });
 
@@ -438,6 +431,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
   long written = 0;
   Entry last;  // the last row written
   bool any = false;
+  bool holding = false;  // the last row written was held at rest
   long peak = 0;
 
   const auto ahead = [&]() -> long {
@@ -504,7 +498,12 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
         play_stop(StreamEnd::kAborted);
         break;
       }
-      if (!sh.queue.empty()) {
+      // Before the first row, and after holding at rest for a planner that fell behind, start
+      // only with a full buffer's worth planned (or the whole rest of the job).
+      const bool filling = (!any || holding) && !sh.planner_done && !abort_ &&
+                           static_cast<long>(sh.queue.size()) < o_.buffer_periods;
+      if (!sh.queue.empty() && !filling) {
+        holding = false;
         Entry e = std::move(sh.queue.front());
         sh.queue.pop_front();
         peak = std::max(peak, static_cast<long>(sh.queue.size()) + 1);
@@ -527,7 +526,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
         }
         break;
       }
-      // Nothing planned yet. Before the first row the machine waits at rest.
+      // Nothing (or not enough) planned yet. Before the first row the machine waits at rest.
       if (!o_.realtime || !any) {
         sh.ready.wait(lock);
         continue;
@@ -535,6 +534,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
       const long a = ahead();
       if (a <= o_.low_water_periods) {
         if (is_hold(last)) {  // at rest: holding is safe, wait for the planner
+          holding = true;
           lock.unlock();
           Entry hold = last;
           write(hold);

@@ -55,11 +55,11 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
 
 // One row per period, in machine units at the edge (mm, degrees).
 struct StreamRow {
-  long row = 0;           // period number since the stream started
-  long index = 0;         // planner index over the job (equal to row unless held at rest)
-  double s = 0.0;         // arc length in the current segment, mm
-  const double* q;        // one value per axis, mm and deg
-  int segment = 0;        // 0-based
+  long row = 0;     // period number since the stream started
+  long index = 0;   // planner index over the job (equal to row unless held at rest)
+  double s = 0.0;   // arc length in the current segment, mm
+  const double* q;  // one value per axis, mm and deg
+  int segment = 0;  // 0-based
 };
 
 class CncOutput {
@@ -74,9 +74,9 @@ class CncOutput {
 };
 
 // Lines for LinuxCNC's halstreamer: one line per period, one number per axis (mm, deg), and the
-// row number + 1 when `index_column` (a u32 pin that tells which setpoint a HAL sample holds). Every
-// number reads back as the same double. Close() repeats the last line once: halstreamer drops the
-// last line of a stream whose length is a multiple of its depth, and a repeated rest row is
+// row number + 1 when `index_column` (a u32 pin that tells which setpoint a HAL sample holds).
+// Every number reads back as the same double. Close() repeats the last line once: halstreamer drops
+// the last line of a stream whose length is a multiple of its depth, and a repeated rest row is
 // harmless.
 class HalstreamerOutput final : public CncOutput {
  public:
@@ -133,23 +133,23 @@ const char* StreamEndName(StreamEnd end);
 
 // Live figures, readable from any thread while the stream runs.
 struct StreamStatus {
-  std::atomic<long> rows{0};          // written to the machine
-  std::atomic<int> segment{0};        // being written (0-based)
-  std::atomic<int> pass{-1};          // surface jobs: being written (0-based), -1 on links
-  std::atomic<double> s_mm{0.0};      // arc length of the last row written, in its segment
-  std::atomic<long> queued{0};        // planned rows waiting to be written
-  std::atomic<long> ahead{0};         // rows the machine holds (or is estimated to hold)
-  std::atomic<long> underruns{0};     // times the planner fell behind (the stop was played)
-  std::atomic<long> holds{0};         // rows held at rest while the planner caught up
+  std::atomic<long> rows{0};       // written to the machine
+  std::atomic<int> segment{0};     // being written (0-based)
+  std::atomic<int> pass{-1};       // surface jobs: being written (0-based), -1 on links
+  std::atomic<double> s_mm{0.0};   // arc length of the last row written, in its segment
+  std::atomic<long> queued{0};     // planned rows waiting to be written
+  std::atomic<long> ahead{0};      // rows the machine holds (or is estimated to hold)
+  std::atomic<long> underruns{0};  // times the planner fell behind (the stop was played)
+  std::atomic<long> holds{0};      // rows held at rest while the planner caught up
   std::atomic<int> segments_planned{0};
 };
 
 struct StreamResult {
   StreamEnd end = StreamEnd::kComplete;
-  std::string error;  // for kFailed: the planner's message
-  long rows = 0;      // written
-  long stop_rows = 0;  // of those, from the stop played at the end
-  int segments = 0;    // planned (started)
+  std::string error;                 // for kFailed: the planner's message
+  long rows = 0;                     // written
+  long stop_rows = 0;                // of those, from the stop played at the end
+  int segments = 0;                  // planned (started)
   std::optional<AxisVector> last_q;  // where the machine stopped (mm, rad)
   interp::VerifyReport verify;       // of exactly the rows written
   double compute_s = 0.0;            // planner thread busy time

@@ -1,0 +1,336 @@
+#include "dtis/io/serve.hpp"
+
+#include <fmt/format.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <filesystem>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "dtis/core/error.hpp"
+#include "dtis/kinematics/machines.hpp"
+
+namespace dtis::io {
+namespace {
+
+using json = nlohmann::ordered_json;
+
+struct QueuedJob {
+  int id = 0;
+  Job job;
+};
+
+struct Finished {
+  int id = 0;
+  std::string file, end, error;
+  long rows = 0, stop_rows = 0;
+  double worst_ratio = 0.0;
+  bool verified = false;
+};
+
+// The state shared by the socket thread and the job runner.
+class Daemon {
+ public:
+  Daemon(const ServeOptions& o, CncOutput& out)
+      : o_(o), out_(out), machine_(kinematics::LoadMachineFile(o.machine_file)), at_(o.from) {}
+
+  // Handles one request line; never throws.
+  std::string Respond(const std::string& line) {
+    json reply;
+    try {
+      const json request = json::parse(line);
+      if (!request.is_object() || !request.contains("cmd") || !request["cmd"].is_string()) {
+        throw Error("expected an object with a string \"cmd\"");
+      }
+      const std::string cmd = request["cmd"];
+      std::unique_lock lock(mutex_);
+      if (cmd == "submit") {
+        if (!request.contains("job") || !request["job"].is_string()) {
+          throw Error("submit needs \"job\": the path of a job file");
+        }
+        Job job = LoadJob(request["job"].get<std::string>());
+        if (std::filesystem::weakly_canonical(job.machine_file) !=
+            std::filesystem::weakly_canonical(o_.machine_file)) {
+          throw Error("{}: runs on {}, this CNC is {}", job.file, job.machine_file,
+                      o_.machine_file);
+        }
+        if (job.interpolator != InterpolatorKind::kVpop) {
+          throw Error("{}: only VPOp jobs can be streamed", job.file);
+        }
+        const int id = ++last_id_;
+        queue_.push_back({id, std::move(job)});
+        reply = {{"ok", true}, {"id", id}, {"queued", queue_.size()}};
+        wake_.notify_all();
+      } else if (cmd == "status") {
+        reply = Status();
+      } else if (cmd == "pause") {
+        held_ = true;
+        if (stream_) stream_->Pause();
+        reply = {{"ok", true}};
+      } else if (cmd == "resume") {
+        held_ = false;
+        if (stream_) stream_->Resume();
+        wake_.notify_all();
+        reply = {{"ok", true}};
+      } else if (cmd == "abort") {
+        held_ = true;  // the queue waits for the operator
+        if (stream_) stream_->Abort();
+        reply = {{"ok", true}, {"aborted", stream_ != nullptr}};
+      } else if (cmd == "shutdown") {
+        quit_ = true;
+        if (stream_) stream_->Abort();
+        wake_.notify_all();
+        reply = {{"ok", true}};
+      } else {
+        throw Error("unknown command '{}' (submit, status, pause, resume, abort, shutdown)", cmd);
+      }
+    } catch (const json::exception& e) {
+      reply = {{"ok", false}, {"error", fmt::format("malformed request: {}", e.what())}};
+    } catch (const std::exception& e) {
+      reply = {{"ok", false}, {"error", e.what()}};
+    }
+    return reply.dump();
+  }
+
+  // The job runner: one job at a time, until shutdown.
+  void RunJobs() {
+    for (;;) {
+      QueuedJob next;
+      {
+        std::unique_lock lock(mutex_);
+        wake_.wait(lock, [&] { return quit_ || (!held_ && !queue_.empty()); });
+        if (quit_) return;
+        next = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      Finished f{next.id, next.job.file, "failed", "", 0, 0, 0.0, false};
+      try {
+        StreamOptions so = o_.stream;
+        so.period_s = next.job.vpop.period_s;
+        if (next.job.vpop.commit_horizon != interp::VpopOptions{}.commit_horizon) {
+          so.commit_horizon = next.job.vpop.commit_horizon;
+        }
+        const auto segments = JobSegments(next.job, *machine_, at_);
+        std::optional<SetpointRecorder> record;
+        if (!o_.record_dir.empty()) {
+          record.emplace(fmt::format("{}/job-{}.csv", o_.record_dir, next.id), *machine_,
+                         so.period_s);
+        }
+        Stream stream(*machine_, so);
+        {
+          std::lock_guard lock(mutex_);
+          stream_ = &stream;
+          current_ = next.id;
+          current_file_ = next.job.file;
+          if (held_) stream.Pause();
+          if (quit_) stream.Abort();
+        }
+        StreamResult r;
+        try {
+          r = stream.Run(*segments, out_, record ? &*record : nullptr);
+        } catch (...) {
+          std::lock_guard lock(mutex_);
+          stream_ = nullptr;
+          throw;
+        }
+        {
+          std::lock_guard lock(mutex_);
+          stream_ = nullptr;
+        }
+        f.end = StreamEndName(r.end);
+        f.error = r.error;
+        f.rows = r.rows;
+        f.stop_rows = r.stop_rows;
+        f.worst_ratio = r.verify.worst_ratio;
+        f.verified = r.rows >= 2 && r.verify.Passed();
+        if (r.last_q) at_ = r.last_q;
+      } catch (const std::exception& e) {
+        f.error = e.what();
+      }
+      std::lock_guard lock(mutex_);
+      stream_ = nullptr;
+      current_ = 0;
+      done_.push_back(f);
+      if (done_.size() > 100) done_.pop_front();
+    }
+  }
+
+  bool Quit() {
+    std::lock_guard lock(mutex_);
+    return quit_;
+  }
+
+ private:
+  json Status() const {
+    json s = {{"ok", true}};
+    s["state"] = stream_ ? (stream_->Paused() ? "pausing" : "streaming") : held_ ? "held" : "idle";
+    if (stream_) {
+      const StreamStatus& st = stream_->Status();
+      s["current"] = {{"id", current_},
+                      {"job", current_file_},
+                      {"segment", st.segment.load()},
+                      {"pass", st.pass.load() + 1},
+                      {"s_mm", st.s_mm.load()},
+                      {"rows", st.rows.load()},
+                      {"queued", st.queued.load()},
+                      {"buffer", st.ahead.load()},
+                      {"underruns", st.underruns.load()},
+                      {"held_rows", st.holds.load()}};
+    }
+    json queued = json::array();
+    for (const auto& q : queue_) queued.push_back({{"id", q.id}, {"job", q.job.file}});
+    s["queue"] = queued;
+    json done = json::array();
+    for (const auto& f : done_) {
+      done.push_back({{"id", f.id},
+                      {"job", f.file},
+                      {"end", f.end},
+                      {"error", f.error},
+                      {"rows", f.rows},
+                      {"stop_rows", f.stop_rows},
+                      {"worst_ratio", f.worst_ratio},
+                      {"verified", f.verified}});
+    }
+    s["done"] = done;
+    return s;
+  }
+
+  const ServeOptions& o_;
+  CncOutput& out_;
+  std::unique_ptr<Machine> machine_;
+  std::optional<AxisVector> at_;  // where the last job left the machine (runner thread only)
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<QueuedJob> queue_;
+  std::deque<Finished> done_;
+  Stream* stream_ = nullptr;
+  int current_ = 0;
+  std::string current_file_;
+  int last_id_ = 0;
+  bool held_ = false, quit_ = false;
+};
+
+sockaddr_un Address(const std::string& path) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  if (path.size() >= sizeof(addr.sun_path)) {
+    throw Error("socket path '{}' is longer than {} characters", path, sizeof(addr.sun_path) - 1);
+  }
+  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+  return addr;
+}
+
+// A peer of the same user (or root) only.
+bool SameUser(int fd) {
+  ucred cred{};
+  socklen_t len = sizeof(cred);
+  if (getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0) return false;
+  return cred.uid == getuid() || cred.uid == 0;
+}
+
+}  // namespace
+
+void Serve(const ServeOptions& options, CncOutput& out) {
+  Daemon daemon(options, out);
+  const sockaddr_un addr = Address(options.socket_path);
+  const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (listener < 0) throw Error("socket: {}", std::strerror(errno));
+  ::unlink(options.socket_path.c_str());
+  const mode_t old_mask = umask(0077);  // the socket file is the owner's only
+  const int bound = bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+  umask(old_mask);
+  if (bound != 0 || chmod(options.socket_path.c_str(), 0600) != 0 || listen(listener, 8) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(listener);
+    throw Error("{}: cannot listen: {}", options.socket_path, why);
+  }
+  std::thread runner([&] { daemon.RunJobs(); });
+
+  struct Client {
+    int fd;
+    std::string in;
+  };
+  std::vector<Client> clients;
+  while (!daemon.Quit()) {
+    std::vector<pollfd> fds{{listener, POLLIN, 0}};
+    for (const auto& c : clients) fds.push_back({c.fd, POLLIN, 0});
+    if (poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR) break;
+    if (fds[0].revents & POLLIN) {
+      const int fd = accept4(listener, nullptr, nullptr, SOCK_CLOEXEC);
+      if (fd >= 0 && SameUser(fd)) {
+        clients.push_back({fd, {}});
+      } else if (fd >= 0) {
+        ::close(fd);
+      }
+    }
+    for (std::size_t k = 1; k < fds.size(); ++k) {
+      if (!(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      Client& c = clients[k - 1];
+      char buf[4096];
+      const ssize_t n = ::read(c.fd, buf, sizeof(buf));
+      if (n <= 0) {
+        ::close(c.fd);
+        c.fd = -1;
+        continue;
+      }
+      c.in.append(buf, static_cast<std::size_t>(n));
+      if (c.in.size() > (1u << 16)) {  // no line that long is a request
+        const std::string reply = R"({"ok":false,"error":"request longer than 64 KiB"})"
+                                  "\n";
+        (void)!::write(c.fd, reply.data(), reply.size());
+        ::close(c.fd);
+        c.fd = -1;
+        continue;
+      }
+      for (std::size_t eol; (eol = c.in.find('\n')) != std::string::npos;) {
+        const std::string reply = daemon.Respond(c.in.substr(0, eol)) + "\n";
+        c.in.erase(0, eol + 1);
+        (void)!::write(c.fd, reply.data(), reply.size());
+      }
+    }
+    std::erase_if(clients, [](const Client& c) { return c.fd < 0; });
+  }
+  for (const auto& c : clients) ::close(c.fd);
+  ::close(listener);
+  ::unlink(options.socket_path.c_str());
+  runner.join();
+}
+
+std::string SendRequest(const std::string& socket_path, const std::string& request) {
+  const sockaddr_un addr = Address(socket_path);
+  const int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) throw Error("socket: {}", std::strerror(errno));
+  if (connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd);
+    throw Error("{}: cannot connect: {} (is `dtis serve` running?)", socket_path, why);
+  }
+  const std::string line = request + "\n";
+  if (::write(fd, line.data(), line.size()) != static_cast<ssize_t>(line.size())) {
+    ::close(fd);
+    throw Error("{}: cannot send the request", socket_path);
+  }
+  std::string reply;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof(buf));
+    if (n <= 0) break;
+    reply.append(buf, static_cast<std::size_t>(n));
+    if (reply.find('\n') != std::string::npos) break;
+  }
+  ::close(fd);
+  if (reply.empty()) throw Error("{}: no reply", socket_path);
+  if (reply.back() == '\n') reply.pop_back();
+  return reply;
+}
+
+}  // namespace dtis::io

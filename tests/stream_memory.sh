@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# The memory of `dtis stream` does not grow with the job's length (issue 6): a G1 raster of 6 rows
+# (about 1 minute at F600) and one of 60 rows (about 10 minutes, 600 000 setpoints) are streamed
+# as fast as the output takes them; their peak resident memory (VmHWM) must differ by less than
+# 8 MB, where keeping the setpoints would take 50 MB more (`dtis run` holds 314 MB for the long one).
+set -euo pipefail
+dtis=$1
+root=$2
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+
+raster() {  # rows, file
+  {
+    echo "G21 G90 G17"
+    echo "G0 X0 Y0 Z5"
+    echo "G1 Z0 F600"
+    for ((k = 0; k < $1; k++)); do
+      x=$((k % 2 == 0 ? 100 : 0))
+      echo "G1 X$x Y$k"
+      echo "G1 X$x Y$((k + 1))"
+    done
+    echo "G0 Z5"
+    echo "M2"
+  } >"$2"
+}
+peak_kb() {  # job: streams it, prints the peak resident memory in kB
+  "$dtis" stream "$1" --to /dev/null --pace none -q &
+  local pid=$! peak=0 now
+  while kill -0 "$pid" 2>/dev/null; do
+    now=$(awk '/VmHWM/ { print $2 }' "/proc/$pid/status" 2>/dev/null || echo 0)
+    [ "${now:-0}" -gt "$peak" ] && peak=$now
+    sleep 0.02
+  done
+  wait "$pid"
+  echo "$peak"
+}
+for rows in 6 60; do
+  raster "$rows" "$out/raster$rows.ngc"
+  cat >"$out/raster$rows.toml" <<EOF
+machine = "$root/samples/machines/mikron_ucp710_xyz.toml"
+period_ms = 1.0
+[path]
+kind = "gcode"
+file = "raster$rows.ngc"
+contour_tol_mm = 0.02
+EOF
+done
+short=$(peak_kb "$out/raster6.toml")
+long=$(peak_kb "$out/raster60.toml")
+echo "stream memory: peak $short kB for ~1 min of motion, $long kB for ~10 min"
+test "$short" -gt 0
+test "$((long - short))" -lt 8192
