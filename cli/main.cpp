@@ -13,7 +13,6 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
-#include <numbers>
 #include <optional>
 #include <string>
 #include <thread>
@@ -134,14 +133,16 @@ dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine
     throw dtis::Error("--from: {} values; machine '{}' has {} axes", values.size(), machine.Name(),
                       machine.AxisCount());
   }
-  dtis::AxisVector q(machine.AxisCount());
-  const auto axes = machine.Axes();
-  for (int i = 0; i < machine.AxisCount(); ++i) {
-    q[i] = axes[static_cast<std::size_t>(i)].rotary
-               ? values[static_cast<std::size_t>(i)] * std::numbers::pi / 180.0
-               : values[static_cast<std::size_t>(i)];
-  }
-  return q;
+  return dtis::io::FileUnits(machine).ToPlanner(values);
+}
+
+// The stream's output: stdout for "-", else a file or FIFO (which opens when halstreamer, or any
+// reader, opens its end).
+std::FILE* OpenStreamOutput(const std::string& to) {
+  if (to == "-") return stdout;
+  std::FILE* file = std::fopen(to.c_str(), "w");
+  if (!file) throw dtis::Error("{}: cannot open the stream output: {}", to, std::strerror(errno));
+  return file;
 }
 
 int Stream(const StreamArgs& a) {
@@ -150,26 +151,16 @@ int Stream(const StreamArgs& a) {
   std::optional<dtis::AxisVector> from;
   if (!a.from.empty()) from = ParseAxisPositions(a.from, *machine);
   const auto segments = dtis::io::JobSegments(job, *machine, from);
-  std::optional<dtis::io::SetpointRecorder> record;
-  if (!a.record.empty()) record.emplace(a.record, *machine, job.vpop.period_s);
-
-  std::FILE* file = stdout;
-  if (a.to != "-") {
-    // A FIFO opens when halstreamer (or any reader) opens its end.
-    file = std::fopen(a.to.c_str(), "w");
-    if (!file) {
-      throw dtis::Error("{}: cannot open the stream output: {}", a.to, std::strerror(errno));
-    }
-  }
+  std::optional<dtis::io::SetpointWriter> record;
+  if (!a.record.empty()) record.emplace(a.record, dtis::io::AxisNames(*machine));
+  std::FILE* file = OpenStreamOutput(a.to);
   struct stat st {};
   const bool paced_output = fstat(fileno(file), &st) == 0 && !S_ISREG(st.st_mode);
   dtis::io::StreamOptions o;
   o.period_s = job.vpop.period_s;
   o.buffer_periods = a.buffer;
-  o.commit_horizon = a.horizon > 0 ? static_cast<std::size_t>(a.horizon)
-                     : job.vpop.commit_horizon != dtis::interp::VpopOptions{}.commit_horizon
-                         ? job.vpop.commit_horizon
-                         : dtis::io::kStreamCommitHorizon;
+  o.commit_horizon =
+      a.horizon > 0 ? static_cast<std::size_t>(a.horizon) : dtis::io::StreamHorizon(job);
   o.low_water_periods = a.low_water;
   o.realtime = a.pace == "realtime" || (a.pace == "auto" && paced_output);
   o.slow_planner_us = a.slow_planner_us;
@@ -249,13 +240,7 @@ int Serve(const ServeArgs& a) {
   const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
   if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
-  std::FILE* file = stdout;
-  if (a.to != "-") {
-    file = std::fopen(a.to.c_str(), "w");
-    if (!file) {
-      throw dtis::Error("{}: cannot open the stream output: {}", a.to, std::strerror(errno));
-    }
-  }
+  std::FILE* file = OpenStreamOutput(a.to);
   std::signal(SIGPIPE, SIG_IGN);
   dtis::io::HalstreamerOutput out(file, machine->AxisCount(), a.index);
   std::fprintf(stderr, "dtis serve: listening on %s\n", o.socket_path.c_str());

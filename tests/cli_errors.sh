@@ -31,6 +31,7 @@ kind = "line"
 from = [0, 0, 0]
 to = [100, 0, 0]
 JOB
+cp "$work/base.toml" "$work/line.toml"
 expect missing-job "no-such.toml: cannot open" -- "$dtis" run "$work/no-such.toml" -o "$work/out.csv"
 printf 'period_ms = -1\n' | cat - "$work/base.toml" > "$work/dt.toml"
 expect bad-period "dt.toml:1: key 'period_ms': expected a number > 0, got -1" -- "$dtis" run "$work/dt.toml" -o "$work/out.csv"
@@ -106,5 +107,8 @@ sed 's/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/' "$work/surf.toml" > "$work/
 printf '\n[compare]\ng1_tolerances_mm = [0.01, -1]\n' >> "$work/cmp.toml"
 expect compare-tol "key 'compare.g1_tolerances_mm': expected tolerances > 0 mm, got -1" -- "$dtis" compare "$work/cmp.toml" --csv "$work/out.csv"
 
-echo "$((22 - failures)) passed, $failures failed"
+expect stream-from "--from: 2 values; machine 'Mikron UCP 710 XYZ (Beudaert 2012, Table 1)' has 3 axes" -- "$dtis" stream "$work/line.toml" --from 1,2 --to /dev/null --record "$work/out.csv"
+expect stream-to "$work/no-such-dir/s.txt: cannot open the stream output" -- "$dtis" stream "$work/line.toml" --to "$work/no-such-dir/s.txt" --record "$work/out.csv"
+
+echo "$((24 - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -62,7 +62,9 @@ TEST(Chordal, CircleChordsWithinToleranceAndAsLongAsAllowed) {
       const Vector3d a = s.tip[v[k]] - kCenter, b = s.tip[v[k + 1]] - kCenter;
       const double theta = std::atan2(a.cross(b).norm(), a.dot(b));
       EXPECT_LE(kRadius * (1.0 - std::cos(theta / 2.0)), tol);
-      if (k + 2 < v.size()) EXPECT_GT(theta, 0.98 * theta_max) << "chord " << k << " too short";
+      if (k + 2 < v.size()) {
+        EXPECT_GT(theta, 0.98 * theta_max) << "chord " << k << " too short";
+      }
     }
     const double chords = 2.0 * std::numbers::pi / theta_max;
     EXPECT_LE(static_cast<double>(v.size() - 1), std::ceil(chords / 0.98) + 1);

@@ -227,7 +227,7 @@ TEST(Stream, RecordReadsBackToTheSameReport) {
       (std::filesystem::temp_directory_path() / "dtis_stream_record_test.csv").string();
   io::StreamResult r;
   {
-    io::SetpointRecorder record(file, *machine, job.vpop.period_s);
+    io::SetpointWriter record(file, io::AxisNames(*machine));
     io::StreamOptions o;
     o.commit_horizon = 64;
     io::Stream stream(*machine, o);

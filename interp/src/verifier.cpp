@@ -45,8 +45,9 @@ StreamVerifier::StreamVerifier(const Machine& machine, double period_s) : dt_(pe
   }
 }
 
-// The backward differences at `row` (Eq. 6 and 14), from the four newest values.
-void StreamVerifier::Differences(long row, AxisState* a, VerifyReport* r) const {
+// The backward differences at `row` (Eq. 6 and 14), from the four newest values, into the axis'
+// maxima. True when one of them exceeds its limit.
+bool StreamVerifier::Differences(long row, AxisState* a) const {
   const double* x = a->x;
   const double v = (x[0] - x[1]) / dt_;
   const double acc = (x[0] - 2.0 * x[1] + x[2]) / (dt_ * dt_);
@@ -55,10 +56,7 @@ void StreamVerifier::Differences(long row, AxisState* a, VerifyReport* r) const 
   if (std::abs(v) > c.v) c.v = std::abs(v), c.v_row = row;
   if (std::abs(acc) > c.a) c.a = std::abs(acc), c.a_row = row;
   if (std::abs(j) > c.j) c.j = std::abs(j), c.j_row = row;
-  if (r && row <= 2 &&
-      (std::abs(v) > a->vmax || std::abs(acc) > a->amax || std::abs(j) > a->jmax)) {
-    r->starts_at_rest = false;
-  }
+  return std::abs(v) > a->vmax || std::abs(acc) > a->amax || std::abs(j) > a->jmax;
 }
 
 void StreamVerifier::Add(double t, const double* row) {
@@ -71,7 +69,6 @@ void StreamVerifier::Add(double t, const double* row) {
     bad_period_row_ = k;
   }
   last_t_ = t;
-  VerifyReport start;
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     AxisState& a = axes_[i];
     if (k == 0) {
@@ -80,13 +77,13 @@ void StreamVerifier::Add(double t, const double* row) {
       std::copy_backward(a.x, a.x + 3, a.x + 4);
       a.x[0] = row[i];
     }
-    Differences(k, &a, &start);
+    // Holding the first row before the file must respect every limit.
+    if (Differences(k, &a) && k <= 2) starts_at_rest_ = false;
     if (k > 0 && a.x[0] != a.x[1]) {
-      if (first_move_ < 0 || k - 1 < first_move_) first_move_ = k - 1;
-      last_move_ = std::max(last_move_, k);
+      if (first_move_ < 0) first_move_ = k - 1;
+      last_move_ = k;
     }
   }
-  if (!start.starts_at_rest) starts_at_rest_ = false;
 }
 
 VerifyReport StreamVerifier::Report() const {
@@ -103,7 +100,7 @@ VerifyReport StreamVerifier::Report() const {
     // Two rows after the last are the last held.
     for (long row = rows_; row < rows_ + 2; ++row) {
       std::copy_backward(a.x, a.x + 3, a.x + 4);
-      Differences(row, &a, row <= 2 ? &r : nullptr);
+      if (Differences(row, &a) && row <= 2) r.starts_at_rest = false;
     }
     AxisCheck c = a.check;
     c.v_ratio = c.v / a.vmax;

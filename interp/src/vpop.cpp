@@ -87,6 +87,10 @@ struct Step {
   LimiterId limiter;
 };
 
+Setpoint ToSetpoint(const Step& step, long index) {
+  return {.index = index, .s = step.s, .q = step.q, .state = step.state, .limiter = step.limiter};
+}
+
 // The three latest steps, newest last.
 struct History {
   const Step* p2;
@@ -883,13 +887,7 @@ void Planner::Commit(long upto) {
   upto = std::min(upto, Last());
   for (long g = committed_; g <= upto; ++g) {
     const Step& step = At(g);
-    Setpoint sp;
-    sp.index = g;
-    sp.s = step.s;
-    sp.q = step.q;
-    sp.state = step.state;
-    sp.limiter = step.limiter;
-    sink_.Accept(sp);
+    sink_.Accept(ToSetpoint(step, g));
     ++summary_.setpoints;
     ++summary_.limited_by[static_cast<int>(step.limiter.kind)];
   }
@@ -908,12 +906,8 @@ void Planner::Commit(long upto) {
 void Planner::OfferStop() {
   std::vector<Setpoint> stop;
   const long last = committed_ - 1;
-  const auto add = [&stop](const Step& step, long index) {
-    stop.push_back(
-        {.index = index, .s = step.s, .q = step.q, .state = step.state, .limiter = step.limiter});
-  };
   if (last <= safe_) {
-    for (long g = committed_; g <= safe_; ++g) add(At(g), g);
+    for (long g = committed_; g <= safe_; ++g) stop.push_back(ToSetpoint(At(g), g));
     if (stop_from_ != safe_) {
       Step first;
       if (!Brake(safe_, &first, INFINITY, 0, &trial_stop_)) {
@@ -925,14 +919,9 @@ void Planner::OfferStop() {
       stop_from_ = safe_;
     }
     long index = safe_;
-    for (const Step& step : stop_) add(step, ++index);
+    for (const Step& step : stop_) stop.push_back(ToSetpoint(step, ++index));
   }
-  Setpoint rest = stop.empty() ? Setpoint{.index = last,
-                                          .s = At(last).s,
-                                          .q = At(last).q,
-                                          .state = At(last).state,
-                                          .limiter = {}}
-                               : stop.back();
+  Setpoint rest = stop.empty() ? ToSetpoint(At(last), last) : stop.back();
   rest.limiter = {Limiter::kRest, -1};
   for (int k = 0; k < 2; ++k) {
     ++rest.index;

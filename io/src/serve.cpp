@@ -116,14 +116,12 @@ class Daemon {
       try {
         StreamOptions so = o_.stream;
         so.period_s = next.job.vpop.period_s;
-        if (next.job.vpop.commit_horizon != interp::VpopOptions{}.commit_horizon) {
-          so.commit_horizon = next.job.vpop.commit_horizon;
-        }
+        so.commit_horizon = StreamHorizon(next.job);
         const auto segments = JobSegments(next.job, *machine_, at_);
-        std::optional<SetpointRecorder> record;
+        std::optional<SetpointWriter> record;
         if (!o_.record_dir.empty()) {
-          record.emplace(fmt::format("{}/job-{}.csv", o_.record_dir, next.id), *machine_,
-                         so.period_s);
+          record.emplace(fmt::format("{}/job-{}.csv", o_.record_dir, next.id),
+                         AxisNames(*machine_));
         }
         Stream stream(*machine_, so);
         {

@@ -91,38 +91,75 @@ interp::SetpointTable ReadSetpoints(const std::string& path) {
 }
 
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {
-  AtomicFile out(path);
-  fmt::memory_buffer buf;
-  fmt::format_to(std::back_inserter(buf), "t");
-  for (const auto& a : table.axes) fmt::format_to(std::back_inserter(buf), ",{}", a);
-  buf.push_back('\n');
+  SetpointWriter out(path, table.axes);
+  std::vector<double> row(table.axes.size());
   for (std::size_t r = 0; r < table.Rows(); ++r) {
-    fmt::format_to(std::back_inserter(buf), "{}", table.t[r]);
-    for (const auto& c : table.columns) fmt::format_to(std::back_inserter(buf), ",{}", c[r]);
-    buf.push_back('\n');
-    if (buf.size() > (1u << 20)) {
-      out.Write({buf.data(), buf.size()});
-      buf.clear();
-    }
+    for (std::size_t i = 0; i < row.size(); ++i) row[i] = table.columns[i][r];
+    out.Row(table.t[r], row.data());
   }
-  out.Write({buf.data(), buf.size()});
   out.Commit();
 }
 
-TableSink::TableSink(const Machine& machine, double period_s) : period_(period_s) {
-  for (const Axis& a : machine.Axes()) {
-    table_.axes.push_back(a.name);
-    rotary_.push_back(a.rotary);
+SetpointWriter::SetpointWriter(const std::string& path, const std::vector<std::string>& axes)
+    : file_(path), axes_(axes.size()) {
+  buffer_ = "t";
+  for (const auto& a : axes) buffer_ += "," + a;
+  buffer_ += '\n';
+}
+
+void SetpointWriter::Row(double t, const double* values) {
+  fmt::format_to(std::back_inserter(buffer_), "{}", t);
+  for (std::size_t i = 0; i < axes_; ++i)
+    fmt::format_to(std::back_inserter(buffer_), ",{}", values[i]);
+  buffer_ += '\n';
+  if (buffer_.size() > (1u << 16)) {
+    file_.Write(buffer_);
+    buffer_.clear();
   }
+}
+
+void SetpointWriter::Commit() {
+  file_.Write(buffer_);
+  buffer_.clear();
+  file_.Commit();
+}
+
+std::vector<std::string> AxisNames(const Machine& machine) {
+  std::vector<std::string> names;
+  for (const Axis& a : machine.Axes()) names.push_back(a.name);
+  return names;
+}
+
+FileUnits::FileUnits(const Machine& machine) {
+  for (const Axis& a : machine.Axes()) rotary_.push_back(a.rotary);
+}
+
+void FileUnits::FromPlanner(const AxisVector& q, double* out) const {
+  for (std::size_t i = 0; i < rotary_.size(); ++i) {
+    const double v = q[static_cast<Eigen::Index>(i)];
+    out[i] = rotary_[i] ? v * (180.0 / std::numbers::pi) : v;
+  }
+}
+
+AxisVector FileUnits::ToPlanner(const std::vector<double>& values) const {
+  AxisVector q(static_cast<Eigen::Index>(rotary_.size()));
+  for (std::size_t i = 0; i < rotary_.size(); ++i) {
+    q[static_cast<Eigen::Index>(i)] =
+        rotary_[i] ? values[i] * (std::numbers::pi / 180.0) : values[i];
+  }
+  return q;
+}
+
+TableSink::TableSink(const Machine& machine, double period_s) : units_(machine), period_(period_s) {
+  table_.axes = AxisNames(machine);
   table_.columns.resize(table_.axes.size());
 }
 
 void TableSink::Accept(const interp::Setpoint& sp) {
   table_.t.push_back(static_cast<double>(sp.index) * period_);
-  for (std::size_t i = 0; i < rotary_.size(); ++i) {
-    const double v = sp.q[static_cast<Eigen::Index>(i)];
-    table_.columns[i].push_back(rotary_[i] ? v * (180.0 / std::numbers::pi) : v);
-  }
+  double row[kMaxAxes];
+  units_.FromPlanner(sp.q, row);
+  for (std::size_t i = 0; i < table_.columns.size(); ++i) table_.columns[i].push_back(row[i]);
   s_.push_back(sp.s);
   limiters_.push_back(sp.limiter);
 }

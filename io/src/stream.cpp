@@ -9,7 +9,6 @@
 #include <cstring>
 #include <deque>
 #include <mutex>
-#include <numbers>
 #include <thread>
 
 #include "dtis/core/error.hpp"
@@ -21,7 +20,6 @@ namespace dtis::io {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
 // ---- segment sources
 
@@ -180,30 +178,12 @@ void HalstreamerOutput::Close() {
   Flush();
 }
 
-SetpointRecorder::SetpointRecorder(const std::string& path, const Machine& machine, double period_s)
-    : file_(path), period_(period_s), axes_(machine.AxisCount()) {
-  buffer_ = "t";
-  for (const Axis& a : machine.Axes()) buffer_ += "," + a.name;
-  buffer_ += '\n';
-}
-
-void SetpointRecorder::Add(const StreamRow& row) {
-  fmt::format_to(std::back_inserter(buffer_), "{}", static_cast<double>(row.row) * period_);
-  for (int i = 0; i < axes_; ++i) fmt::format_to(std::back_inserter(buffer_), ",{}", row.q[i]);
-  buffer_ += '\n';
-  if (buffer_.size() > (1u << 16)) {
-    file_.Write(buffer_);
-    buffer_.clear();
-  }
-}
-
-void SetpointRecorder::Commit() {
-  file_.Write(buffer_);
-  buffer_.clear();
-  file_.Commit();
-}
-
 // ---- the stream
+
+std::size_t StreamHorizon(const Job& job) {
+  return job.vpop.commit_horizon != interp::VpopOptions{}.commit_horizon ? job.vpop.commit_horizon
+                                                                         : kStreamCommitHorizon;
+}
 
 const char* StreamEndName(StreamEnd end) {
   switch (end) {
@@ -240,7 +220,6 @@ struct Stream::Shared {
   bool planner_done = false;
   std::string error;
   double compute_s = 0.0;
-  int segments = 0;
   long largest_handover = 0;
 };
 
@@ -279,13 +258,13 @@ class SegmentSink final : public interp::SetpointSink {
   }
   bool WantsStops() const override { return true; }
   void AcceptStop(const std::vector<interp::Setpoint>& stop) override {
-    if (misaligned_ || abort_) return;
+    // Nothing new handed over: the stop offered before still holds.
+    if (misaligned_ || abort_ || pending_.empty()) return;
     std::vector<interp::Setpoint> rows = stop;
     for (auto& r : rows) {
       r.index += base_;
       r.q += shift_;
     }
-    if (pending_.empty()) return;  // nothing new: the stop offered before still holds
     if (!push_(std::move(pending_), std::move(rows))) stopped_ = true;
     pending_.clear();
   }
@@ -346,14 +325,17 @@ void Stream::Resume() {
   shared_->space.notify_all();
 }
 
-StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecorder* record) {
+StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter* record) {
   Shared& sh = *shared_;
   const Clock::time_point started = Clock::now();
   // Hands a batch to the queue; waits while the queue is full. False once aborted.
   const long capacity = std::max<long>(o_.buffer_periods, 64);
+  double waited = 0.0;  // planner thread: time spent waiting for room in the queue
   auto push = [&](std::vector<Entry>&& rows, std::vector<interp::Setpoint>&& stop) {
     std::unique_lock lock(sh.mutex);
+    const auto wait_start = Clock::now();
     sh.space.wait(lock, [&] { return abort_ || static_cast<long>(sh.queue.size()) < capacity; });
+    waited += std::chrono::duration<double>(Clock::now() - wait_start).count();
     if (abort_) return false;
     sh.largest_handover = std::max(sh.largest_handover, static_cast<long>(rows.size()));
     rows.back().stop = std::make_shared<const std::vector<interp::Setpoint>>(std::move(stop));
@@ -415,18 +397,15 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
     std::lock_guard lock(sh.mutex);
     sh.planner_done = true;
     sh.error = error;
-    sh.compute_s = busy;
-    sh.segments = status_.segments_planned;
+    sh.compute_s = busy - waited;
     sh.ready.notify_all();
   });
 
   // ---- the feeder (this thread)
   StreamResult result;
-  const int n = machine_.AxisCount();
-  std::vector<bool> rotary;
-  for (const Axis& a : machine_.Axes()) rotary.push_back(a.rotary);
+  const FileUnits file_units(machine_);
   interp::StreamVerifier verifier(machine_, o_.period_s);
-  std::vector<double> units(static_cast<std::size_t>(n));
+  double units[kMaxAxes];
   std::optional<Clock::time_point> t0;  // when the machine got the first row
   long written = 0;
   Entry last;  // the last row written
@@ -455,14 +434,11 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
         }
       }
     }
-    for (int i = 0; i < n; ++i) {
-      const double v = e.sp.q[i];
-      units[static_cast<std::size_t>(i)] = rotary[static_cast<std::size_t>(i)] ? v * kRadToDeg : v;
-    }
-    const StreamRow row{written, e.sp.index, e.sp.s, units.data(), e.segment};
-    out.Write(row);
-    if (record) record->Add(row);
-    verifier.Add(static_cast<double>(written) * o_.period_s, units.data());
+    file_units.FromPlanner(e.sp.q, units);
+    const double t = static_cast<double>(written) * o_.period_s;
+    out.Write({written, e.sp.index, e.sp.s, units, e.segment});
+    if (record) record->Row(t, units);
+    verifier.Add(t, units);
     if (!t0) t0 = Clock::now();
     ++written;
     status_.rows = written;
@@ -536,8 +512,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
         if (is_hold(last)) {  // at rest: holding is safe, wait for the planner
           holding = true;
           lock.unlock();
-          Entry hold = last;
-          write(hold);
+          write(last);
           ++status_.holds;
           lock.lock();
           continue;
@@ -560,7 +535,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointRecord
   out.Close();
 
   result.rows = written;
-  result.segments = sh.segments;
+  result.segments = status_.segments_planned;
   result.compute_s = sh.compute_s;
   result.peak_queued = peak;
   result.largest_handover = sh.largest_handover;

@@ -63,7 +63,7 @@ class StreamVerifier {
     double x[4];              // newest first
     AxisCheck check;
   };
-  void Differences(long row, AxisState* a, VerifyReport* r) const;
+  bool Differences(long row, AxisState* a) const;
   double dt_;
   double t0_ = 0.0, last_t_ = 0.0;
   long rows_ = 0;

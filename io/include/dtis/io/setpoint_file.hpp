@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "dtis/core/machine.hpp"
 #include "dtis/interp/verifier.hpp"
@@ -19,6 +20,33 @@ interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& s
 // Writes a table atomically.
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table);
 
+// The same file written row by row, in constant memory (a stream), renamed into place on Commit().
+class SetpointWriter {
+ public:
+  SetpointWriter(const std::string& path, const std::vector<std::string>& axes);
+  void Row(double t, const double* values);  // one value per axis, file units
+  void Commit();
+
+ private:
+  AtomicFile file_;
+  std::string buffer_;
+  std::size_t axes_;
+};
+
+// The machine's axis names, in order: the columns after `t`.
+std::vector<std::string> AxisNames(const Machine& machine);
+
+// Axis positions between the planner's units (mm, rad) and the files' (mm, deg).
+class FileUnits {
+ public:
+  explicit FileUnits(const Machine& machine);
+  void FromPlanner(const AxisVector& q, double* out) const;  // one value per axis
+  AxisVector ToPlanner(const std::vector<double>& values) const;
+
+ private:
+  std::vector<bool> rotary_;
+};
+
 // A sink that converts planner setpoints (mm, rad) to file units and keeps them in a table, which
 // the caller then verifies and writes.
 class TableSink final : public interp::SetpointSink {
@@ -32,7 +60,7 @@ class TableSink final : public interp::SetpointSink {
 
  private:
   interp::SetpointTable table_;
-  std::vector<bool> rotary_;
+  FileUnits units_;
   std::vector<double> s_;
   std::vector<interp::LimiterId> limiters_;
   double period_;

@@ -20,8 +20,8 @@
 #include "dtis/core/path_source.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
-#include "dtis/io/atomic_file.hpp"
 #include "dtis/io/job.hpp"
+#include "dtis/io/setpoint_file.hpp"
 
 namespace dtis::io {
 
@@ -93,24 +93,12 @@ class HalstreamerOutput final : public CncOutput {
   std::string last_;
 };
 
-// The stream as a setpoint CSV (the format `dtis verify` reads), written atomically on Commit().
-class SetpointRecorder {
- public:
-  SetpointRecorder(const std::string& path, const Machine& machine, double period_s);
-  void Add(const StreamRow& row);
-  void Commit();
-
- private:
-  AtomicFile file_;
-  std::string buffer_;
-  double period_;
-  int axes_;
-};
-
 // ---- the stream itself
 
 // The commit horizon a stream uses unless the job sets one, periods.
 inline constexpr std::size_t kStreamCommitHorizon = 256;
+// The job's commit_horizon if it sets one, else kStreamCommitHorizon.
+std::size_t StreamHorizon(const Job& job);
 
 struct StreamOptions {
   double period_s = 1e-3;
@@ -152,7 +140,7 @@ struct StreamResult {
   int segments = 0;                  // planned (started)
   std::optional<AxisVector> last_q;  // where the machine stopped (mm, rad)
   interp::VerifyReport verify;       // of exactly the rows written
-  double compute_s = 0.0;            // planner thread busy time
+  double compute_s = 0.0;            // planner thread busy time (not waiting for room in the queue)
   double wall_s = 0.0;
   long peak_queued = 0;
   // Most rows handed over at once: an abort plays at most this many planned rows before the stop.
@@ -164,10 +152,10 @@ class Stream {
   Stream(const Machine& machine, const StreamOptions& options);
   ~Stream();
 
-  // Plans `segments` on a worker thread and writes every setpoint to `out` (and `record`) on the
-  // calling thread until the job ends, Abort() is called or the planner fails or falls behind.
-  // Ends at rest in every case.
-  StreamResult Run(SegmentSource& segments, CncOutput& out, SetpointRecorder* record = nullptr);
+  // Plans `segments` on a worker thread and writes every setpoint to `out` (and to `record`,
+  // committed at the end, with t = row * period) on the calling thread until the job ends, Abort()
+  // is called or the planner fails or falls behind. Ends at rest in every case.
+  StreamResult Run(SegmentSource& segments, CncOutput& out, SetpointWriter* record = nullptr);
 
   // From any thread: end the stream as soon as the stop allows.
   void Abort();
