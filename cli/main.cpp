@@ -16,12 +16,14 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/compare.hpp"
+#include "dtis/io/hal_stream.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/serve.hpp"
 #include "dtis/io/setpoint_file.hpp"
@@ -102,6 +104,12 @@ int Compare(const CompareArgs& a) {
   return 0;
 }
 
+const std::string kStreamToHelp =
+    std::string(
+        "output: - for stdout, a file or FIFO (halstreamer's stdin), or hal:N straight into "
+        "HAL's streamer.N") +
+    (dtis::io::NativeHalBuilt() ? "" : " (hal:N not in this build: no linuxcnc-uspace-dev)");
+
 // Set by SIGINT/SIGTERM: the stream then ends with its stop to rest.
 std::atomic<bool> g_interrupted{false};
 extern "C" void OnInterrupt(int) { g_interrupted = true; }
@@ -136,14 +144,56 @@ dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine
   return dtis::io::FileUnits(machine).ToPlanner(values);
 }
 
-// The stream's output: stdout for "-", else a file or FIFO (which opens when halstreamer, or any
-// reader, opens its end).
-std::FILE* OpenStreamOutput(const std::string& to) {
-  if (to == "-") return stdout;
-  std::FILE* file = std::fopen(to.c_str(), "w");
-  if (!file) throw dtis::Error("{}: cannot open the stream output: {}", to, std::strerror(errno));
-  return file;
-}
+// Where a stream goes: "-" (stdout), a file or FIFO (halstreamer's stdin; a FIFO opens when its
+// reader does) as halstreamer lines, or "hal:N" straight into HAL's streamer.N.
+class StreamOutput {
+ public:
+  StreamOutput(const std::string& to, const dtis::Machine& machine, bool index, long buffer)
+      : to_(to) {
+    if (to.rfind("hal:", 0) == 0) {
+      const std::string channel = to.substr(4);
+      char* end = nullptr;
+      const long n = std::strtol(channel.c_str(), &end, 10);
+      if (channel.empty() || *end != '\0' || n < 0 || n > 7) {
+        throw dtis::Error("--to {}: expected hal:N, N the streamer channel 0..7", to);
+      }
+      out_ = dtis::io::OpenHalStreamer(static_cast<int>(n), machine.AxisCount(), index, buffer);
+      paced_ = true;
+      return;
+    }
+    if (to != "-") {
+      file_ = std::fopen(to.c_str(), "w");
+      if (!file_)
+        throw dtis::Error("{}: cannot open the stream output: {}", to, std::strerror(errno));
+    }
+    struct stat st {};
+    paced_ = fstat(fileno(file_), &st) == 0 && !S_ISREG(st.st_mode);
+    out_ = std::make_unique<dtis::io::HalstreamerOutput>(file_, machine.AxisCount(), index);
+  }
+  ~StreamOutput() {
+    if (file_ != stdout) std::fclose(file_);
+  }
+  StreamOutput(const StreamOutput&) = delete;
+  StreamOutput& operator=(const StreamOutput&) = delete;
+
+  dtis::io::CncOutput& Cnc() { return *out_; }
+  // Paced by what reads it (a pipe, a FIFO, a terminal, HAL), not a regular file.
+  bool Paced() const { return paced_; }
+  // Closes a file output, reporting what the last writes could not.
+  void Close() {
+    if (file_ == stdout) return;
+    std::FILE* file = std::exchange(file_, stdout);
+    if (std::fclose(file) != 0) {
+      throw dtis::Error("{}: cannot close the stream output: {}", to_, std::strerror(errno));
+    }
+  }
+
+ private:
+  std::string to_;
+  std::FILE* file_ = stdout;
+  std::unique_ptr<dtis::io::CncOutput> out_;
+  bool paced_ = false;
+};
 
 int Stream(const StreamArgs& a) {
   const dtis::io::Job job = dtis::io::LoadJob(a.job);
@@ -153,18 +203,15 @@ int Stream(const StreamArgs& a) {
   const auto segments = dtis::io::JobSegments(job, *machine, from);
   std::optional<dtis::io::SetpointWriter> record;
   if (!a.record.empty()) record.emplace(a.record, dtis::io::AxisNames(*machine));
-  std::FILE* file = OpenStreamOutput(a.to);
-  struct stat st {};
-  const bool paced_output = fstat(fileno(file), &st) == 0 && !S_ISREG(st.st_mode);
+  StreamOutput output(a.to, *machine, a.index, a.buffer);
   dtis::io::StreamOptions o;
   o.period_s = job.vpop.period_s;
   o.buffer_periods = a.buffer;
   o.commit_horizon =
       a.horizon > 0 ? static_cast<std::size_t>(a.horizon) : dtis::io::StreamHorizon(job);
   o.low_water_periods = a.low_water;
-  o.realtime = a.pace == "realtime" || (a.pace == "auto" && paced_output);
+  o.realtime = a.pace == "realtime" || (a.pace == "auto" && output.Paced());
   o.slow_planner_us = a.slow_planner_us;
-  dtis::io::HalstreamerOutput out(file, machine->AxisCount(), a.index);
   dtis::io::Stream stream(*machine, o);
 
   std::signal(SIGPIPE, SIG_IGN);  // a reader gone is a write error, reported
@@ -182,18 +229,15 @@ int Stream(const StreamArgs& a) {
   });
   dtis::io::StreamResult r;
   try {
-    r = stream.Run(*segments, out, record ? &*record : nullptr);
+    r = stream.Run(*segments, output.Cnc(), record ? &*record : nullptr);
   } catch (...) {
     finished = true;
     watcher.join();
-    if (file != stdout) std::fclose(file);
     throw;
   }
   finished = true;
   watcher.join();
-  if (file != stdout && std::fclose(file) != 0) {
-    throw dtis::Error("{}: cannot close the stream output: {}", a.to, std::strerror(errno));
-  }
+  output.Close();
   if (!a.quiet) {
     std::fprintf(stderr, "stream           %s after %ld setpoints (%ld of them the stop to rest)\n",
                  dtis::io::StreamEndName(r.end), r.rows, r.stop_rows);
@@ -240,12 +284,11 @@ int Serve(const ServeArgs& a) {
   const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
   if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
-  std::FILE* file = OpenStreamOutput(a.to);
+  StreamOutput output(a.to, *machine, a.index, a.buffer);
   std::signal(SIGPIPE, SIG_IGN);
-  dtis::io::HalstreamerOutput out(file, machine->AxisCount(), a.index);
   std::fprintf(stderr, "dtis serve: listening on %s\n", o.socket_path.c_str());
-  dtis::io::Serve(o, out);
-  if (file != stdout) std::fclose(file);
+  dtis::io::Serve(o, output.Cnc());
+  output.Close();
   return 0;
 }
 
@@ -334,8 +377,7 @@ int main(int argc, char** argv) {
       "ended early at rest; 3: the stream failed the verifier; 1: bad input.");
   StreamArgs sa;
   stream->add_option("JOB", sa.job, "job file (see samples/jobs/)")->required();
-  stream->add_option("--to", sa.to, "output: a file or FIFO (halstreamer's stdin), - for stdout")
-      ->capture_default_str();
+  stream->add_option("--to", sa.to, kStreamToHelp)->capture_default_str();
   stream->add_option("--buffer", sa.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
@@ -378,8 +420,7 @@ int main(int argc, char** argv) {
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
       ->required();
-  serve->add_option("--to", va.to, "output: a file or FIFO (halstreamer's stdin), - for stdout")
-      ->capture_default_str();
+  serve->add_option("--to", va.to, kStreamToHelp)->capture_default_str();
   serve->add_option("--buffer", va.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);

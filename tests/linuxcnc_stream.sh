@@ -8,12 +8,17 @@
 #   - what was planned for the stream is byte for byte what `dtis run --horizon` plans;
 #   - the stream passes `dtis verify`; so does a stream killed (SIGTERM) mid-pass, which ends with
 #     the stop to rest, and one whose planner is made too slow (an underrun), read back from HAL.
-# Usage: linuxcnc_stream.sh DTIS ROOT [OUTDIR]  (OUTDIR keeps the recordings; default: a temp dir)
+# With HAL_CAPTURE (the native sink is built), also through `--to hal:0`, dtis writing into the
+# streamer's FIFO itself: HAL's samples, read at full precision, equal the plan exactly and pass
+# `dtis verify` themselves, for a whole job and for one killed mid-pass.
+# Usage: linuxcnc_stream.sh DTIS ROOT [OUTDIR [HAL_CAPTURE]]  (OUTDIR keeps the recordings; "" or
+# none: a temp dir)
 set -euo pipefail
 dtis=$1
 root=$2
 keep=${3:-}
 out=${3:-$(mktemp -d)}
+capture=${4:-}
 mkdir -p "$out"
 job=$root/samples/jobs/surface_tilt10_xyzac.toml
 machine=$root/samples/machines/mikron_ucp710_xyzac.toml
@@ -71,7 +76,7 @@ naxes=$(echo "$axes" | wc -w)
 cfg=$(printf 'f%.0s' $(seq "$naxes"))u
 
 # Starts a HAL session: streamer (depth chosen not to divide typical lengths) then sampler, in
-# that order on one 1 ms thread, and halsampler recording into $1.
+# that order on one 1 ms thread, and halsampler (or the command in RECORDER) recording into $1.
 start_hal() {
   local hal=$out/stream.hal
   {
@@ -84,7 +89,7 @@ start_hal() {
     echo "start"
   } >"$hal"
   timeout 60 halcmd -f "$hal" >"$out/halcmd.log" 2>&1
-  halsampler >"$1" 2>"$out/halsampler.err" &
+  ${RECORDER:-halsampler} >"$1" 2>"$out/recorder.err" &
   sampler_pid=$!
 }
 # Waits for the streamer to drain, then stops the recording.
@@ -118,6 +123,13 @@ hal_to_csv() {  # recording, expected rows, output csv
     END { if (k != rows) { printf "%d periods recorded, %d rows streamed\n", k, rows > "/dev/stderr"; exit 1 } }
   ' "$1" >"$3"
 }
+# Positions of HAL's full-precision capture against the stream's own record: equal, as doubles.
+exact_positions() {  # hal csv, record csv
+  paste -d, "$1" "$2" | awk -F, -v n="$naxes" '
+    NR == 1 { next }
+    { for (i = 2; i <= n + 1; i++) if ($i + 0 != $(i + n + 1) + 0) { printf "row %d axis %d: HAL %s, planned %s\n", NR - 1, i - 1, $i, $(i + n + 1) > "/dev/stderr"; exit 1 } }
+    END { printf "HAL = planned, exactly, on %d rows\n", NR - 1 }'
+}
 # Positions of the HAL recording (6 decimals) against the stream's own record (full precision).
 same_positions() {  # hal csv, record csv
   paste -d, "$1" "$2" | awk -F, -v n="$naxes" '
@@ -132,16 +144,21 @@ same_positions() {  # hal csv, record csv
     END { if (!bad) printf "largest |HAL - planned| %.3g (6 printed decimals)\n", worst }'
 }
 
-# Streams the job into halstreamer through a FIFO; extra arguments go to dtis stream. Sets `rc`.
-# With KILL_AFTER set, sends SIGTERM to dtis that many seconds after it starts.
+# Streams the job into halstreamer through a FIFO, or with NATIVE=1 straight into streamer.0
+# (--to hal:0); extra arguments go to dtis stream. Sets `rc`. With KILL_AFTER set, sends SIGTERM
+# to dtis that many seconds after it starts.
 stream_job() {  # name, dtis stream arguments...
   local name=$1
   shift
-  rm -f "$out/fifo"
-  mkfifo "$out/fifo"
-  timeout 120 halstreamer <"$out/fifo" &
-  local streamer=$!
-  timeout 120 "$dtis" stream "$job" --horizon $horizon --index --pace realtime --to "$out/fifo" \
+  local to=hal:0 streamer=
+  if [ -z "${NATIVE:-}" ]; then
+    rm -f "$out/fifo"
+    mkfifo "$out/fifo"
+    timeout 120 halstreamer <"$out/fifo" &
+    streamer=$!
+    to=$out/fifo
+  fi
+  timeout 120 "$dtis" stream "$job" --horizon $horizon --index --pace realtime --to "$to" \
     --record "$out/$name.csv" "$@" 2>"$out/$name.log" &
   local pid=$!
   if [ -n "${KILL_AFTER:-}" ]; then
@@ -150,7 +167,7 @@ stream_job() {  # name, dtis stream arguments...
   fi
   rc=0
   wait "$pid" || rc=$?
-  wait "$streamer"
+  [ -z "$streamer" ] || wait "$streamer"
   cat "$out/$name.log"
 }
 
@@ -192,3 +209,38 @@ hal_to_csv "$out/hal_starved.txt" "$rows" "$out/hal_starved.csv"
 same_positions "$out/hal_starved.csv" "$out/starved.csv"
 "$dtis" verify "$out/starved.csv" "$machine"
 echo "stream: starved planner ended with the stop after $rows periods, verified"
+
+# ---- 4. the native sink: dtis writes into streamer.0's FIFO itself (no text, no halstreamer)
+if [ -z "$capture" ]; then
+  echo "stream: native HAL sink not built (no linuxcnc-uspace-dev): hal:N not tested"
+  exit 0
+fi
+set +e
+"$dtis" stream "$job" --index --to hal:0 2>"$out/no_hal.log"
+rc=$?
+set -e
+test "$rc" = 1
+grep -q "no streamer.0 to attach to" "$out/no_hal.log"
+echo "stream: --to hal:0 without a streamer: $(cat "$out/no_hal.log")"
+
+RECORDER="$capture 0" start_hal "$out/hal_native.txt"
+NATIVE=1 stream_job native
+stop_recording
+test "$rc" = 0
+grep -q "pace real time" "$out/native.log"
+cmp "$out/planned.csv" "$out/native.csv"
+rows=$(($(wc -l <"$out/native.csv") - 1))
+hal_to_csv "$out/hal_native.txt" "$rows" "$out/hal_native.csv"
+exact_positions "$out/hal_native.csv" "$out/native.csv"
+"$dtis" verify "$out/hal_native.csv" "$machine" | tail -1
+echo "stream: native hal:0 played the plan, period for period, exactly; HAL's own samples verified"
+
+RECORDER="$capture 0" start_hal "$out/hal_native_abort.txt"
+NATIVE=1 KILL_AFTER=0.8 stream_job native_aborted
+stop_recording
+test "$rc" = 5
+rows=$(($(wc -l <"$out/native_aborted.csv") - 1))
+hal_to_csv "$out/hal_native_abort.txt" "$rows" "$out/hal_native_abort.csv"
+exact_positions "$out/hal_native_abort.csv" "$out/native_aborted.csv"
+"$dtis" verify "$out/hal_native_abort.csv" "$machine" | tail -1
+echo "stream: native hal:0 killed mid-pass after $rows periods: HAL's own samples end at rest, verified"
