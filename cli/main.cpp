@@ -25,6 +25,7 @@
 #include "dtis/io/compare.hpp"
 #include "dtis/io/hal_stream.hpp"
 #include "dtis/io/job.hpp"
+#include "dtis/io/report.hpp"
 #include "dtis/io/serve.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/io/stream.hpp"
@@ -53,7 +54,7 @@ class Progress {
 };
 
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
-        bool quiet, int threads, long horizon) {
+        const std::string& report, bool quiet, int threads, long horizon) {
   dtis::io::Job job = dtis::io::LoadJob(job_path);
   if (horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(horizon);
   std::string setpoints = !output.empty()              ? output
@@ -66,10 +67,22 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
   options.progress = [&progress](int done, int total) { progress.Update(done, total); };
   const dtis::io::RunResult result = dtis::io::RunJob(job, options);
   dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file);
+  if (!report.empty()) {
+    dtis::io::ReportInput in;
+    in.title = job.name;
+    in.machine = result.machine.get();
+    in.table = &result.table;
+    in.limiters = result.limiters;
+    in.programmed_feed_mm_min = job.vpop.feed_mm_s * 60.0;
+    in.compute_s = result.compute_s;
+    in.passes = result.passes;
+    dtis::io::WriteReport(in, report);
+  }
   if (!quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
-    std::fprintf(stderr, "wrote            %s%s%s\n", setpoints.c_str(),
-                 limiter_file.empty() ? "" : ", ", limiter_file.c_str());
+    std::fprintf(stderr, "wrote            %s%s%s%s%s\n", setpoints.c_str(),
+                 limiter_file.empty() ? "" : ", ", limiter_file.c_str(), report.empty() ? "" : ", ",
+                 report.c_str());
   }
   return result.verify.Passed() || job.interpolator != dtis::io::InterpolatorKind::kVpop ? 0 : 3;
 }
@@ -300,6 +313,19 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
   return report.Passed() ? 0 : 1;
 }
 
+int Report(const std::string& setpoints, const std::string& machine_file, std::string output) {
+  const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
+  const auto table = dtis::io::ReadSetpoints(setpoints);
+  if (output.empty()) output = std::filesystem::path(setpoints).replace_extension(".html").string();
+  dtis::io::ReportInput in;
+  in.title = std::filesystem::path(setpoints).filename().string();
+  in.machine = machine.get();
+  in.table = &table;
+  dtis::io::WriteReport(in, output);
+  std::fprintf(stderr, "wrote            %s\n", output.c_str());
+  return 0;
+}
+
 int Faces(const std::string& file) {
   const auto model = dtis::geometry::StepModel::Load(file);
   std::fputs(dtis::geometry::FormatFaceTable(model).c_str(), stdout);
@@ -326,6 +352,10 @@ int main(int argc, char** argv) {
                   "setpoint file (default: the job's [output] setpoints, else NAME.csv)");
   run->add_option("--limiters", limiters,
                   "also write, per setpoint, the arc length, feed and which constraint limited it");
+  std::string run_report;
+  run->add_option("--report", run_report,
+                  "also write a self-contained HTML report (tool path by feed, feed, every axis "
+                  "against its limits)");
   run->add_flag("-q,--quiet", quiet, "print nothing on success");
   long run_horizon = 0;
   run->add_option("--horizon", run_horizon,
@@ -368,6 +398,17 @@ int main(int argc, char** argv) {
   std::string setpoints, machine;
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
   verify->add_option("MACHINE", machine, "machine file (see samples/machines/)")->required();
+
+  auto* report = app.add_subcommand(
+      "report",
+      "Write a self-contained HTML report of any setpoint file (a run, a stream recording, a HAL "
+      "capture): the tool tip path coloured by feed, feed against time, every axis' position, "
+      "velocity, acceleration and jerk against its limits, and the verifier's summary. "
+      "`dtis run --report` adds the constraint that decided each period.");
+  std::string report_file, report_machine, report_output;
+  report->add_option("FILE", report_file, "setpoint CSV")->required();
+  report->add_option("MACHINE", report_machine, "machine file")->required();
+  report->add_option("-o,--output", report_output, "HTML file (default: FILE with .html)");
 
   auto* stream = app.add_subcommand(
       "stream",
@@ -448,7 +489,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*run) return Run(job, output, limiters, quiet, threads, run_horizon);
+    if (*report) return Report(report_file, report_machine, report_output);
+    if (*run) return Run(job, output, limiters, run_report, quiet, threads, run_horizon);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);

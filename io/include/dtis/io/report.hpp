@@ -1,0 +1,44 @@
+// A run as one self-contained HTML file (issue 7): the tool path coloured by feed, feed against
+// time with the programmed feed and the constraint that decided each period, every axis'
+// position, velocity, acceleration and jerk against its limits, and the verifier's summary.
+// plotly.js is embedded at report time, so the file opens offline. Long runs are decimated for
+// display without hiding peaks: each pixel-wide bucket of a time series keeps its min and max.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "dtis/core/machine.hpp"
+#include "dtis/interp/verifier.hpp"
+#include "dtis/interp/vpop.hpp"
+
+namespace dtis::io {
+
+struct ReportInput {
+  std::string title;                             // the job or file the run came from
+  const Machine* machine = nullptr;              // the axes and limits
+  const interp::SetpointTable* table = nullptr;  // file units (mm, deg)
+  std::vector<interp::LimiterId> limiters;       // per setpoint when known (VPOp runs)
+  double programmed_feed_mm_min = 0.0;           // 0: not known
+  double compute_s = -1.0;                       // < 0: not known
+  int passes = 0;                                // surface jobs
+};
+
+// Time-series points shown per plot (min and max of each of half as many buckets).
+inline constexpr std::size_t kReportPoints = 4000;
+
+// The indices of `values` to draw at most `points` of them: the first and last, and in each of
+// points / 2 equal buckets the rows of the smallest and the largest value, in order.
+std::vector<std::size_t> DecimateMinMax(const std::vector<double>& values, std::size_t points);
+
+// The report as HTML, with `plotly_js` (the library's source) inlined.
+std::string RenderReport(const ReportInput& input, const std::string& plotly_js);
+
+// Where plotly.min.js is read from: $DTIS_PLOTLY_JS, else the copy scripts/bootstrap installs.
+std::string PlotlyPath();
+
+// Verifies the run, renders it with plotly.js from PlotlyPath() and writes it atomically.
+// Throws dtis::Error when plotly.js is missing (naming the path and how to get it).
+void WriteReport(const ReportInput& input, const std::string& path);
+
+}  // namespace dtis::io
