@@ -61,6 +61,7 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
   const std::string limiter_file = !limiters.empty() ? limiters : job.limiters_out;
+  const std::string plotly = report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
   Progress progress(!quiet);
   dtis::io::RunOptions options;
   options.threads = threads;
@@ -72,11 +73,12 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
     in.title = job.name;
     in.machine = result.machine.get();
     in.table = &result.table;
+    in.verify = &result.verify;
     in.limiters = result.limiters;
     in.programmed_feed_mm_min = job.vpop.feed_mm_s * 60.0;
     in.compute_s = result.compute_s;
     in.passes = result.passes;
-    dtis::io::WriteReport(in, report);
+    dtis::io::WriteReport(in, plotly, report);
   }
   if (!quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
@@ -314,6 +316,7 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
 }
 
 int Report(const std::string& setpoints, const std::string& machine_file, std::string output) {
+  const std::string plotly = dtis::io::LoadPlotly();
   const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
   const auto table = dtis::io::ReadSetpoints(setpoints);
   if (output.empty()) output = std::filesystem::path(setpoints).replace_extension(".html").string();
@@ -321,7 +324,7 @@ int Report(const std::string& setpoints, const std::string& machine_file, std::s
   in.title = std::filesystem::path(setpoints).filename().string();
   in.machine = machine.get();
   in.table = &table;
-  dtis::io::WriteReport(in, output);
+  dtis::io::WriteReport(in, plotly, output);
   std::fprintf(stderr, "wrote            %s\n", output.c_str());
   return 0;
 }

@@ -234,7 +234,8 @@ std::vector<std::size_t> DecimateMinMax(const std::vector<double>& values, std::
 std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
   const Machine& machine = *in.machine;
   const interp::SetpointTable& table = *in.table;
-  const interp::VerifyReport verify = interp::Verify(table, machine);  // checks the axes
+  // Verify checks that the table's axes are the machine's; a run's own report already did.
+  const interp::VerifyReport verify = in.verify ? *in.verify : interp::Verify(table, machine);
   const std::size_t n = table.Rows();
   const double dt = verify.period_s;
   const auto axes = machine.Axes();
@@ -341,17 +342,21 @@ std::string PlotlyPath() {
   return DTIS_PLOTLY_JS;
 }
 
-void WriteReport(const ReportInput& input, const std::string& path) {
-  const std::string plotly_path = PlotlyPath();
-  const std::string plotly = ReadFile(plotly_path);
+std::string LoadPlotly() {
+  const std::string path = PlotlyPath();
+  std::string plotly = ReadFile(path);
   if (plotly.empty()) {
     throw Error(
-        "{}: cannot read plotly.js for the report ({}); run scripts/bootstrap (npm ci in "
+        "cannot read plotly.js for the HTML report from '{}'; run scripts/bootstrap (npm ci in "
         "tools/report) or set DTIS_PLOTLY_JS to a plotly.min.js",
-        path, plotly_path.empty() ? "no path built in" : plotly_path);
+        path.empty() ? "(no path built in)" : path);
   }
+  return plotly;
+}
+
+void WriteReport(const ReportInput& input, const std::string& plotly_js, const std::string& path) {
   AtomicFile out(path);
-  out.Write(RenderReport(input, plotly));
+  out.Write(RenderReport(input, plotly_js));
   out.Commit();
 }
 

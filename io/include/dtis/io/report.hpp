@@ -18,10 +18,12 @@ struct ReportInput {
   std::string title;                             // the job or file the run came from
   const Machine* machine = nullptr;              // the axes and limits
   const interp::SetpointTable* table = nullptr;  // file units (mm, deg)
-  std::vector<interp::LimiterId> limiters;       // per setpoint when known (VPOp runs)
-  double programmed_feed_mm_min = 0.0;           // 0: not known
-  double compute_s = -1.0;                       // < 0: not known
-  int passes = 0;                                // surface jobs
+  // The run's own verification of `table`, when it has one; else the report verifies it.
+  const interp::VerifyReport* verify = nullptr;
+  std::vector<interp::LimiterId> limiters;  // per setpoint when known (VPOp runs)
+  double programmed_feed_mm_min = 0.0;      // 0: not known
+  double compute_s = -1.0;                  // < 0: not known
+  int passes = 0;                           // surface jobs
 };
 
 // Time-series points shown per plot (min and max of each of half as many buckets).
@@ -37,8 +39,11 @@ std::string RenderReport(const ReportInput& input, const std::string& plotly_js)
 // Where plotly.min.js is read from: $DTIS_PLOTLY_JS, else the copy scripts/bootstrap installs.
 std::string PlotlyPath();
 
-// Verifies the run, renders it with plotly.js from PlotlyPath() and writes it atomically.
-// Throws dtis::Error when plotly.js is missing (naming the path and how to get it).
-void WriteReport(const ReportInput& input, const std::string& path);
+// plotly.js from PlotlyPath(). Throws dtis::Error when it is missing (naming the path and how to
+// get it): call it before the work the report is about, so a missing library fails at once.
+std::string LoadPlotly();
+
+// Renders the report with `plotly_js` (from LoadPlotly) and writes it atomically.
+void WriteReport(const ReportInput& input, const std::string& plotly_js, const std::string& path);
 
 }  // namespace dtis::io
