@@ -25,7 +25,10 @@ constexpr auto kStalled = std::chrono::seconds(5);
 class HalStreamerSink final : public CncOutput {
  public:
   HalStreamerSink(int channel, int axes, bool index_column, long buffer_periods)
-      : channel_(channel), axes_(axes), index_column_(index_column) {
+      : channel_(channel),
+        axes_(axes),
+        index_column_(index_column),
+        cfg_(std::string(static_cast<std::size_t>(axes), 'f') + (index_column ? "u" : "")) {
     const std::string name = "dtis-stream-" + std::to_string(getpid());
     comp_ = hal_init(name.c_str());
     if (comp_ < 0) {
@@ -37,8 +40,8 @@ class HalStreamerSink final : public CncOutput {
       hal_exit(comp_);
       throw Error(
           "HAL: no streamer.{} to attach to (error {}): load it first, e.g. 'loadrt streamer "
-          "depth=1021 cfg={}{}'",
-          channel, rc, std::string(static_cast<std::size_t>(axes), 'f'), index_column ? "u" : "");
+          "depth=1021 cfg={}'",
+          channel, rc, cfg_);
     }
     try {
       CheckPins(buffer_periods);
@@ -100,11 +103,9 @@ class HalStreamerSink final : public CncOutput {
           have += '?';
       }
     }
-    const std::string expected =
-        std::string(static_cast<std::size_t>(axes_), 'f') + (index_column_ ? "u" : "");
-    if (count != want || have != expected) {
+    if (count != want || have != cfg_) {
       throw Error("HAL: streamer.{} has pins cfg={}; this machine needs cfg={}{}", channel_, have,
-                  expected, index_column_ ? " (--index adds the u32)" : "");
+                  cfg_, index_column_ ? " (--index adds the u32)" : "");
     }
     const long depth = hal_stream_maxdepth(&stream_);
     if (depth <= buffer_periods) {
@@ -118,6 +119,7 @@ class HalStreamerSink final : public CncOutput {
   int channel_;
   int axes_;
   bool index_column_;
+  std::string cfg_;  // the streamer's pins this machine needs: one f per axis, u for the index
   int comp_ = -1;
   hal_stream_t stream_{};
 };
