@@ -4,10 +4,10 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <optional>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 
 namespace dtis {
 namespace {
@@ -61,15 +61,13 @@ TomlTable TomlTable::ParseString(std::string_view text, const std::string& sourc
 }
 
 TomlTable TomlTable::ParseFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  const std::optional<std::string> text = ReadFileText(path);
+  if (!text) {
     const bool exists = std::filesystem::exists(path);
     throw Error("{}: cannot open ({}); check the path", path,
                 exists ? "permission denied or not a file" : "no such file");
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseString(text.str(), path);
+  return ParseString(*text, path);
 }
 
 bool TomlTable::Has(std::string_view key) const { return table_->contains(key); }

@@ -5,12 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
-#include <sstream>
+#include <optional>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/setpoint_file.hpp"
 
@@ -72,14 +72,6 @@ ordered_json LimiterBand(const ReportInput& in) {
     }
   }
   return {{"t", std::move(xs)}, {"label", std::move(ys)}};
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // Text safe inside <script>: no "</" can close the element.
@@ -344,14 +336,14 @@ std::string PlotlyPath() {
 
 std::string LoadPlotly() {
   const std::string path = PlotlyPath();
-  std::string plotly = ReadFile(path);
-  if (plotly.empty()) {
+  std::optional<std::string> plotly = ReadFileText(path);
+  if (!plotly || plotly->empty()) {
     throw Error(
         "cannot read plotly.js for the HTML report from '{}'; run scripts/bootstrap (npm ci in "
         "tools/report) or set DTIS_PLOTLY_JS to a plotly.min.js",
         path.empty() ? "(no path built in)" : path);
   }
-  return plotly;
+  return std::move(*plotly);
 }
 
 void WriteReport(const ReportInput& input, const std::string& plotly_js, const std::string& path) {

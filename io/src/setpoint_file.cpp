@@ -3,11 +3,11 @@
 #include <fmt/format.h>
 
 #include <charconv>
-#include <fstream>
 #include <numbers>
-#include <sstream>
+#include <optional>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 
 namespace dtis::io {
 
@@ -83,11 +83,9 @@ interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& s
 }
 
 interp::SetpointTable ReadSetpoints(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("{}: cannot open the setpoint file; check the path", path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseSetpoints(text.str(), path);
+  const std::optional<std::string> text = ReadFileText(path);
+  if (!text) throw Error("{}: cannot open the setpoint file; check the path", path);
+  return ParseSetpoints(*text, path);
 }
 
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {
