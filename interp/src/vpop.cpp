@@ -47,6 +47,14 @@ const char* LimiterName(Limiter limiter) {
   return "?";
 }
 
+std::optional<Limiter> LimiterFromName(std::string_view name) {
+  for (int k = 0; k < static_cast<int>(Limiter::kCount); ++k) {
+    const auto limiter = static_cast<Limiter>(k);
+    if (name == LimiterName(limiter)) return limiter;
+  }
+  return std::nullopt;
+}
+
 bool VpopOptions::IsValid(std::string* why) const {
   const auto fail = [why](std::string message) {
     if (why) *why = std::move(message);

@@ -21,6 +21,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "dtis/core/machine.hpp"
@@ -76,6 +77,8 @@ enum class Limiter : std::uint8_t {
   kCount
 };
 const char* LimiterName(Limiter limiter);
+// The limiter LimiterName gives `name`, if any.
+std::optional<Limiter> LimiterFromName(std::string_view name);
 
 struct LimiterId {
   Limiter kind = Limiter::kStart;
