@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <numbers>
 #include <optional>
 
@@ -86,6 +88,73 @@ interp::SetpointTable ReadSetpoints(const std::string& path) {
   const std::optional<std::string> text = ReadFileText(path);
   if (!text) throw Error("{}: cannot open the setpoint file; check the path", path);
   return ParseSetpoints(*text, path);
+}
+
+std::vector<interp::LimiterId> ParseLimiters(std::string_view text, const std::string& source,
+                                             const std::vector<std::string>& axes) {
+  constexpr std::string_view kHeader = "t,s,feed,limiter,axis";
+  std::vector<interp::LimiterId> limiters;
+  long line = 0;
+  for (std::size_t pos = 0; pos < text.size();) {
+    std::size_t end = text.find('\n', pos);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view row = text.substr(pos, end - pos);
+    pos = end + 1;
+    ++line;
+    if (!row.empty() && row.back() == '\r') row.remove_suffix(1);
+    if (line == 1) {
+      if (row != kHeader) {
+        throw Error("{}:1: expected the header '{}' of a limiter report (dtis run --limiters)",
+                    source, kHeader);
+      }
+      continue;
+    }
+    if (row.empty()) continue;
+    std::string_view fields[5];
+    std::size_t n = 0;
+    for (std::size_t start = 0;; ++n) {
+      const std::size_t comma = row.find(',', start);
+      if (n < 5)
+        fields[n] = row.substr(start, comma == std::string_view::npos ? comma : comma - start);
+      if (comma == std::string_view::npos) break;
+      start = comma + 1;
+    }
+    if (n + 1 != 5) {
+      throw Error("{}:{}: {} values; expected 5 (t,s,feed,limiter,axis)", source, line, n + 1);
+    }
+    for (std::size_t c = 0; c < 3; ++c) {
+      double value = 0.0;
+      const auto [ptr, ec] =
+          std::from_chars(fields[c].data(), fields[c].data() + fields[c].size(), value);
+      if (ec != std::errc() || ptr != fields[c].data() + fields[c].size() ||
+          !std::isfinite(value)) {
+        constexpr const char* kNames[] = {"t", "s", "feed"};
+        throw Error("{}:{}: column {} ('{}') is not a finite number", source, line, c + 1,
+                    kNames[c]);
+      }
+    }
+    interp::LimiterId id;
+    const auto kind = interp::LimiterFromName(fields[3]);
+    if (!kind) throw Error("{}:{}: column 4: unknown limiter '{}'", source, line, fields[3]);
+    id.kind = *kind;
+    if (!fields[4].empty()) {
+      const auto at = std::find(axes.begin(), axes.end(), fields[4]);
+      if (at == axes.end()) {
+        throw Error("{}:{}: column 5: '{}' is not an axis of the machine", source, line, fields[4]);
+      }
+      id.axis = static_cast<std::int8_t>(at - axes.begin());
+    }
+    limiters.push_back(id);
+  }
+  if (line == 0) throw Error("{}: empty file; expected a limiter report '{}'", source, kHeader);
+  return limiters;
+}
+
+std::vector<interp::LimiterId> ReadLimiters(const std::string& path,
+                                            const std::vector<std::string>& axes) {
+  const std::optional<std::string> text = ReadFileText(path);
+  if (!text) throw Error("{}: cannot open the limiter report; check the path", path);
+  return ParseLimiters(*text, path, axes);
 }
 
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {

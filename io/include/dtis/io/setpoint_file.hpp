@@ -17,6 +17,14 @@ namespace dtis::io {
 interp::SetpointTable ReadSetpoints(const std::string& path);
 interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& source_name);
 
+// A limiter report (`dtis run --limiters`: header `t,s,feed,limiter,axis`), the constraint that
+// decided each setpoint; `axes` are the machine's axis names the axis column may hold. Throws
+// dtis::Error naming the file, line and column.
+std::vector<interp::LimiterId> ReadLimiters(const std::string& path,
+                                            const std::vector<std::string>& axes);
+std::vector<interp::LimiterId> ParseLimiters(std::string_view text, const std::string& source_name,
+                                             const std::vector<std::string>& axes);
+
 // Writes a table atomically.
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table);
 
