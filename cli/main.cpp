@@ -23,6 +23,7 @@
 #include "dtis/interp/verifier.hpp"
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/compare.hpp"
+#include "dtis/io/figures.hpp"
 #include "dtis/io/hal_stream.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/report.hpp"
@@ -53,6 +54,50 @@ class Progress {
   std::mutex mutex_;
 };
 
+// A surface job's face for its report. A face OpenCASCADE cannot mesh costs the report its
+// surface, not the run its output: a warning, and the report without it.
+std::optional<dtis::geometry::FaceMesh> ReportSurface(const dtis::io::Job& job) {
+  if (!job.surface) return std::nullopt;
+  try {
+    return dtis::io::MeshJobSurface(job);
+  } catch (const dtis::Error& e) {
+    std::fprintf(stderr, "dtis: warning: the report shows no surface: %s\n", e.what());
+    return std::nullopt;
+  }
+}
+
+// What every report of a planned run shows: its setpoints, their verification, and what decided
+// each period.
+dtis::io::ReportInput PlannedReport(std::string title, const dtis::Machine& machine,
+                                    const dtis::interp::SetpointTable& table,
+                                    const dtis::interp::VerifyReport& verify,
+                                    std::vector<dtis::interp::LimiterId> limiters,
+                                    double compute_s) {
+  dtis::io::ReportInput in;
+  in.title = std::move(title);
+  in.machine = &machine;
+  in.table = &table;
+  in.verify = &verify;
+  in.limiters = std::move(limiters);
+  in.compute_s = compute_s;
+  return in;
+}
+
+// A job's report: `in` with the job's programmed feed and, for a surface job, its face.
+std::string RenderJobReport(const dtis::io::Job& job, dtis::io::ReportInput in,
+                            const std::string& plotly) {
+  in.programmed_feed_mm_min = job.vpop.feed_mm_s * 60.0;
+  const auto surface = ReportSurface(job);
+  if (surface) in.surface = &*surface;
+  return dtis::io::RenderReport(in, plotly);
+}
+
+void WriteFile(const std::string& path, const std::string& text) {
+  dtis::io::AtomicFile out(path);
+  out.Write(text);
+  out.Commit();
+}
+
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
         const std::string& report, bool quiet, int threads, long horizon) {
   dtis::io::Job job = dtis::io::LoadJob(job_path);
@@ -69,16 +114,10 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
   const dtis::io::RunResult result = dtis::io::RunJob(job, options);
   dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file);
   if (!report.empty()) {
-    dtis::io::ReportInput in;
-    in.title = job.name;
-    in.machine = result.machine.get();
-    in.table = &result.table;
-    in.verify = &result.verify;
-    in.limiters = result.limiters;
-    in.programmed_feed_mm_min = job.vpop.feed_mm_s * 60.0;
-    in.compute_s = result.compute_s;
+    dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
+                                             result.limiters, result.compute_s);
     in.passes = result.passes;
-    dtis::io::WriteReport(in, plotly, report);
+    WriteFile(report, RenderJobReport(job, std::move(in), plotly));
   }
   if (!quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
@@ -90,13 +129,15 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
 }
 
 struct CompareArgs {
-  std::string job, csv, markdown, exports;
+  std::string job, csv, markdown, exports, report;
   bool quiet = false;
   int threads = 0;
 };
 
 int Compare(const CompareArgs& a) {
   const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  const std::string plotly =
+      a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
   dtis::io::CompareOptions options;
   options.threads = a.threads;
   options.exports_dir = a.exports;
@@ -106,12 +147,24 @@ int Compare(const CompareArgs& a) {
   };
   const dtis::io::CompareResult result = dtis::io::RunCompare(job, options);
   if (tty) std::fputs("\r\033[K", stderr);
-  // Both tables land together or not at all.
-  std::optional<dtis::io::AtomicFile> csv, md;
+  // The tables and the report land together or not at all.
+  std::optional<dtis::io::AtomicFile> csv, md, html;
   if (!a.csv.empty()) csv.emplace(a.csv).Write(dtis::io::FormatCompareCsv(result));
   if (!a.markdown.empty()) md.emplace(a.markdown).Write(dtis::io::FormatCompareMarkdown(result));
+  if (!a.report.empty()) {
+    // The comparison on top; below it, the exact-surface variant's full report.
+    const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+    const dtis::io::VariantResult& exact = result.variants.back();
+    dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
+                                             exact.verify, exact.limiters, exact.compute_s);
+    in.passes = result.passes;
+    in.compare = &result;
+    in.shown = exact.name;
+    html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
+  }
   if (csv) csv->Commit();
   if (md) md->Commit();
+  if (html) html->Commit();
   std::fputs(dtis::io::FormatCompareText(result).c_str(), stdout);
   for (const auto& v : result.variants) {
     if (!v.verify.Passed()) return 3;
@@ -130,7 +183,7 @@ std::atomic<bool> g_interrupted{false};
 extern "C" void OnInterrupt(int) { g_interrupted = true; }
 
 struct StreamArgs {
-  std::string job, to = "-", record, pace = "auto", from;
+  std::string job, to = "-", record, report, pace = "auto", from;
   long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
   bool index = false, quiet = false;
 };
@@ -212,6 +265,7 @@ class StreamOutput {
 
 int Stream(const StreamArgs& a) {
   const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
   const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
   std::optional<dtis::AxisVector> from;
   if (!a.from.empty()) from = ParseAxisPositions(a.from, *machine);
@@ -227,6 +281,7 @@ int Stream(const StreamArgs& a) {
   o.low_water_periods = a.low_water;
   o.realtime = a.pace == "realtime" || (a.pace == "auto" && output.Paced());
   o.slow_planner_us = a.slow_planner_us;
+  o.keep_rows = !a.report.empty();
   dtis::io::Stream stream(*machine, o);
 
   std::signal(SIGPIPE, SIG_IGN);  // a reader gone is a write error, reported
@@ -253,6 +308,15 @@ int Stream(const StreamArgs& a) {
   finished = true;
   watcher.join();
   output.Close();
+  // What the machine was sent, stop included, as the report shows it.
+  if (!a.report.empty() && r.rows >= 2) {
+    WriteFile(a.report,
+              RenderJobReport(job,
+                              PlannedReport(fmt::format("{} (stream, {})", job.name,
+                                                        dtis::io::StreamEndName(r.end)),
+                                            *machine, r.table, r.verify, r.limiters, r.compute_s),
+                              plotly));
+  }
   if (!a.quiet) {
     std::fprintf(stderr, "stream           %s after %ld setpoints (%ld of them the stop to rest)\n",
                  dtis::io::StreamEndName(r.end), r.rows, r.stop_rows);
@@ -271,6 +335,8 @@ int Stream(const StreamArgs& a) {
                    r.verify.worst.c_str(), r.verify.Passed() ? "PASS" : "FAIL");
     }
     if (record) std::fprintf(stderr, "recorded         %s\n", a.record.c_str());
+    if (!a.report.empty() && r.rows >= 2)
+      std::fprintf(stderr, "report           %s\n", a.report.c_str());
   }
   if (r.rows >= 2 && !r.verify.Passed()) return 3;
   return r.end == dtis::io::StreamEnd::kComplete ? 0 : 5;
@@ -315,17 +381,54 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
   return report.Passed() ? 0 : 1;
 }
 
-int Report(const std::string& setpoints, const std::string& machine_file, std::string output) {
+struct ReportArgs {
+  std::string setpoints, machine, output, job, limiters;
+};
+
+int Report(const ReportArgs& a) {
   const std::string plotly = dtis::io::LoadPlotly();
-  const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
-  const auto table = dtis::io::ReadSetpoints(setpoints);
-  if (output.empty()) output = std::filesystem::path(setpoints).replace_extension(".html").string();
+  std::optional<dtis::io::Job> job;
+  if (!a.job.empty()) job = dtis::io::LoadJob(a.job);
+  if (a.machine.empty() && !job) {
+    throw dtis::Error("report {}: give the MACHINE file, or --job for the job's machine",
+                      a.setpoints);
+  }
+  const auto machine =
+      dtis::kinematics::LoadMachineFile(a.machine.empty() ? job->machine_file : a.machine);
+  const auto table = dtis::io::ReadSetpoints(a.setpoints);
+  std::vector<dtis::interp::LimiterId> limiters;
+  if (!a.limiters.empty()) {
+    limiters = dtis::io::ReadLimiters(a.limiters, dtis::io::AxisNames(*machine));
+    if (limiters.size() != table.Rows()) {
+      throw dtis::Error("{}: {} rows; the setpoint file {} has {}: not the same run", a.limiters,
+                        limiters.size(), a.setpoints, table.Rows());
+    }
+  }
+  const std::string output =
+      a.output.empty() ? std::filesystem::path(a.setpoints).replace_extension(".html").string()
+                       : a.output;
+  const std::string file = std::filesystem::path(a.setpoints).filename().string();
   dtis::io::ReportInput in;
-  in.title = std::filesystem::path(setpoints).filename().string();
+  in.title = job ? fmt::format("{} ({})", job->name, file) : file;
   in.machine = machine.get();
   in.table = &table;
-  dtis::io::WriteReport(in, plotly, output);
+  in.limiters = std::move(limiters);
+  WriteFile(output, job ? RenderJobReport(*job, std::move(in), plotly)
+                        : dtis::io::RenderReport(in, plotly));
   std::fprintf(stderr, "wrote            %s\n", output.c_str());
+  return 0;
+}
+
+int Figures(const std::string& report, const std::string& out_dir,
+            const dtis::io::FigureOptions& options, bool quiet) {
+  const auto files = dtis::io::ExportFigures(
+      report,
+      out_dir.empty() ? std::filesystem::path(report).replace_extension("").string() + "_figures"
+                      : out_dir,
+      options);
+  if (!quiet) {
+    for (const auto& f : files) std::fprintf(stderr, "wrote            %s\n", f.c_str());
+  }
   return 0;
 }
 
@@ -382,6 +485,9 @@ int main(int argc, char** argv) {
   compare->add_option("--exports", ca.exports,
                       "write the exports there: G1 programs (.ngc), B-spline curve files (.toml), "
                       "Siemens BSPLINE programs (.mpf), LinuxCNC G5.2 programs for XY passes");
+  compare->add_option("--report", ca.report,
+                      "also write a self-contained HTML report: the table, every variant's feed "
+                      "against time, and the exact-surface run in full");
   compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
   compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")
       ->check(CLI::NonNegativeNumber);
@@ -408,10 +514,33 @@ int main(int argc, char** argv) {
       "capture): the tool tip path coloured by feed, feed against time, every axis' position, "
       "velocity, acceleration and jerk against its limits, and the verifier's summary. "
       "`dtis run --report` adds the constraint that decided each period.");
-  std::string report_file, report_machine, report_output;
-  report->add_option("FILE", report_file, "setpoint CSV")->required();
-  report->add_option("MACHINE", report_machine, "machine file")->required();
-  report->add_option("-o,--output", report_output, "HTML file (default: FILE with .html)");
+  ReportArgs ra;
+  report->add_option("FILE", ra.setpoints, "setpoint CSV")->required();
+  report->add_option("MACHINE", ra.machine, "machine file (default: the --job's)");
+  report->add_option("-o,--output", ra.output, "HTML file (default: FILE with .html)");
+  report->add_option("--job", ra.job,
+                     "the job the setpoints came from: its machine, programmed feed and, for a "
+                     "surface job, the face drawn under the path");
+  report->add_option("--limiters", ra.limiters,
+                     "the run's limiter report (dtis run --limiters): the constraint that decided "
+                     "each period, as a band under the feed");
+
+  auto* figures = app.add_subcommand(
+      "figures",
+      "Draw every plot of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
+      "files for papers, with headless Chromium: the same plots, drawn by the same plotly.js.");
+  std::string figures_report, figures_dir, figures_formats = "png,svg";
+  dtis::io::FigureOptions fo;
+  bool figures_quiet = false;
+  figures->add_option("REPORT", figures_report, "HTML report")->required();
+  figures->add_option("-o,--output", figures_dir,
+                      "folder for NAME.FORMAT files (default: REPORT without .html, + _figures)");
+  figures->add_option("--format", figures_formats, "comma-separated: png, svg, jpeg, webp")
+      ->capture_default_str();
+  figures->add_option("--width", fo.width_px, "figure width, pixels (heights as in the report)")
+      ->capture_default_str()
+      ->check(CLI::Range(200, 8000));
+  figures->add_flag("-q,--quiet", figures_quiet, "print nothing on success");
 
   auto* stream = app.add_subcommand(
       "stream",
@@ -447,6 +576,9 @@ int main(int argc, char** argv) {
                    "add a last column with the period number + 1 (a u32 streamer pin)");
   stream->add_option("--record", sa.record,
                      "also write what was streamed as a setpoint CSV (for dtis verify)");
+  stream->add_option("--report", sa.report,
+                     "also write a self-contained HTML report of what was streamed (stop "
+                     "included)");
   stream->add_option("--from", sa.from,
                      "where the machine is, X,Y,Z[,A,C] (mm, deg): a link leads from there to the "
                      "job's start");
@@ -492,7 +624,17 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (*report) return Report(report_file, report_machine, report_output);
+    if (*report) return Report(ra);
+    if (*figures) {
+      fo.formats.clear();
+      for (std::size_t start = 0;;) {
+        const std::size_t comma = figures_formats.find(',', start);
+        fo.formats.push_back(figures_formats.substr(start, comma - start));
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+      }
+      return Figures(figures_report, figures_dir, fo, figures_quiet);
+    }
     if (*run) return Run(job, output, limiters, run_report, quiet, threads, run_horizon);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);

@@ -7,8 +7,10 @@ root=$2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 failures=0
+checks=0
 expect() {  # expect NAME FRAGMENT -- command...
   local name=$1 fragment=$2
+  checks=$((checks + 1))
   shift 3
   local err
   err=$("$@" 2>&1 >/dev/null)
@@ -112,5 +114,23 @@ expect stream-to "$work/no-such-dir/s.txt: cannot open the stream output" -- "$d
 expect stream-hal-channel "--to hal:x: expected hal:N, N the streamer channel 0..7" -- "$dtis" stream "$work/line.toml" --to hal:x --record "$work/out.csv"
 expect report-no-plotly "cannot read plotly.js for the HTML report from '$work/no-plotly.js'" -- env DTIS_PLOTLY_JS="$work/no-plotly.js" "$dtis" run "$work/line.toml" -o "$work/out.csv" --report "$work/out.html"
 
-echo "$((26 - failures)) passed, $failures failed"
+
+# Reports: a limiter report of another run, or a malformed one, names the file and line; a report
+# needs a machine; figures name the report, the format or the browser that failed.
+"$dtis" run "$work/line.toml" -o "$work/line.csv" --limiters "$work/line_lim.csv" -q
+head -n 100 "$work/line_lim.csv" > "$work/short_lim.csv"
+expect report-limiters-rows "short_lim.csv: 99 rows; the setpoint file $work/line.csv has" -- "$dtis" report "$work/line.csv" "$work/mikron_ucp710_xyz.toml" --limiters "$work/short_lim.csv" -o "$work/out.html"
+sed '3s/,[a-z_]*,\([A-Z]*\)$/,warp,\1/' "$work/line_lim.csv" > "$work/warp_lim.csv"
+expect report-limiters-name "warp_lim.csv:3: column 4: unknown limiter 'warp'" -- "$dtis" report "$work/line.csv" "$work/mikron_ucp710_xyz.toml" --limiters "$work/warp_lim.csv" -o "$work/out.html"
+expect report-no-machine "give the MACHINE file, or --job" -- "$dtis" report "$work/line.csv" -o "$work/out.html"
+expect stream-report-no-plotly "cannot read plotly.js" -- env DTIS_PLOTLY_JS="$work/no-plotly.js" "$dtis" stream "$work/line.toml" --to /dev/null --record "$work/out.csv" --report "$work/out.html"
+expect figures-missing "$work/no-such.html: no such report" -- "$dtis" figures "$work/no-such.html" -o "$work/out"
+printf '<!DOCTYPE html><html><body>not a report</body></html>\n' > "$work/page.html"
+expect figures-format "figure format 'gif': expected png, svg, jpeg or webp" -- "$dtis" figures "$work/page.html" --format png,gif -o "$work/out"
+expect figures-browser "cannot run $work/no-chromium" -- env DTIS_CHROMIUM="$work/no-chromium" "$dtis" figures "$work/page.html" -o "$work/out"
+if command -v chromium >/dev/null; then
+  expect figures-page "page.html: the browser (" -- "$dtis" figures "$work/page.html" -o "$work/out"
+fi
+
+echo "$((checks - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -10,15 +10,7 @@
 namespace dtis::io {
 namespace {
 
-template <typename F>
-void ExpectError(F&& f, const std::string& fragment) {
-  try {
-    f();
-    FAIL() << "expected an error containing '" << fragment << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
-  }
-}
+using test::ExpectError;
 
 const std::string kJob = R"(machine = "m.toml"
 feed_mm_min = 5000

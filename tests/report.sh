@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# dtis run --report on every sample job, each report loaded in headless Chromium (issue 7): the page
-# must render with no script or console error, hold the expected number of plots and traces, and
-# show the numbers `dtis verify` prints for the same setpoints. Keeps a screenshot of the 5-axis
-# report in OUTDIR (default: the current folder, ctest's build/tests).
+# HTML reports in headless Chromium (issue 7). Every sample job's `dtis run --report`, a `dtis
+# compare --report`, a `dtis stream --report` and a `dtis report --job --limiters` must render with
+# no script or console error, hold the expected plots and traces, and show the numbers `dtis verify`
+# prints for the same setpoints; `dtis figures` must write every plot as a PNG and an SVG. Keeps a
+# screenshot of the 5-axis report and its figures in OUTDIR (default: the current folder, ctest's
+# build/tests).
 # Usage: report.sh DTIS ROOT [OUTDIR]
 set -euo pipefail
 dtis=$1
@@ -11,62 +13,123 @@ out=${3:-$PWD}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-if ! command -v chromium >/dev/null; then
-  [ "$(id -u)" = 0 ] || { echo "report: chromium missing and not root: apt install chromium" >&2; exit 1; }
-  install() {
-    DEBIAN_FRONTEND=noninteractive timeout 600 apt-get install -y -q --no-install-recommends \
-      chromium >>"$work/apt.log" 2>&1
-  }
-  install || { timeout 600 apt-get update -qq >>"$work/apt.log" 2>&1 && install; } ||
-    { tail -20 "$work/apt.log" >&2; exit 1; }
-fi
+command -v chromium >/dev/null ||
+  { echo "report: no chromium; scripts/bootstrap installs it (apt install chromium)" >&2; exit 1; }
 browse() {  # extra chromium arguments..., page
   timeout 180 chromium --headless --no-sandbox --disable-gpu --use-gl=swiftshader \
     --enable-unsafe-swiftshader --virtual-time-budget=20000 --enable-logging=stderr --v=0 \
     --user-data-dir="$work/profile" "$@"
 }
+machine_of() {  # job -> its machine file, absolute
+  local m
+  m=$(sed -n 's/^machine *= *"\(.*\)"/\1/p' "$1")
+  (cd "$(dirname "$1")" && realpath "$m")
+}
 
 failures=0
-for job in "$root"/samples/jobs/*.toml; do
-  name=$(basename "$job" .toml)
-  machine=$(sed -n 's/^machine *= *"\(.*\)"/\1/p' "$job")
-  machine=$(cd "$(dirname "$job")" && realpath "$machine")
-  "$dtis" run "$job" -o "$work/$name.csv" --report "$work/$name.html" -q || true
-  axes=$(($(head -1 "$work/$name.csv" | tr ',' '\n' | wc -l) - 1))
-  browse --dump-dom "file://$work/$name.html" >"$work/$name.dom" 2>"$work/$name.err"
+# check NAME HTML SETPOINTS MACHINE PLOTS MIN_TRACES MAX_TRACES [TEXT...]: the page renders, with
+# PLOTS plots and MIN..MAX traces, its summary equal to dtis verify's on SETPOINTS, and each TEXT
+# somewhere in its tables.
+check() {
+  local name=$1 html=$2 csv=$3 machine=$4 want_plots=$5 min_traces=$6 max_traces=$7
+  shift 7
+  browse --dump-dom "file://$html" >"$work/$name.dom" 2>"$work/$name.err"
+  local body status errors plots traces time_v ratio_v summary problem=""
   body=$(grep -o '<body[^>]*>' "$work/$name.dom")
   status=$(sed -n 's/.*data-report-status="\([^"]*\)".*/\1/p' <<<"$body")
   errors=$(sed -n 's/.*data-console-errors="\([^"]*\)".*/\1/p' <<<"$body")
   plots=$(sed -n 's/.*data-plots="\([^"]*\)".*/\1/p' <<<"$body")
   traces=$(sed -n 's/.*data-traces="\([^"]*\)".*/\1/p' <<<"$body")
-  # Path (+ tool axis in 5-axis); feed (+ programmed feed, + deciding constraint); per axis 4
-  # series and 6 limit lines.
-  rotary=$((axes > 3 ? 1 : 0))
-  want_plots=$((2 + axes))
-  # The summary: motion time and worst ratio as dtis verify prints them.
-  "$dtis" verify "$work/$name.csv" "$machine" >"$work/$name.verify" || true
+  "$dtis" verify "$csv" "$machine" >"$work/$name.verify" || true
   time_v=$(sed -n 's/^\([0-9]*\) setpoints, period .* motion time \([0-9.]*\) s$/\2/p' "$work/$name.verify")
   ratio_v=$(sed -n 's/^worst ratio \([0-9.]*\) (.*/\1/p' "$work/$name.verify")
-  summary=$(sed 's/<[^>]*>/|/g' "$work/$name.dom" | tr -s '|' | grep -o 'motion time|[0-9.]* s|setpoints|[^|]*|worst ratio|[0-9.]*' || true)
-  problem=""
+  sed 's/<[^>]*>/|/g' "$work/$name.dom" | tr -s '|' >"$work/$name.text"
+  summary=$(grep -o 'motion time|[0-9.]* s|setpoints|[^|]*|worst ratio|[0-9.]*' "$work/$name.text" || true)
   [ "$status" = ok ] || problem="status '$status'"
   [ "$errors" = 0 ] || problem="$problem; $errors console errors"
   grep -q "Uncaught" "$work/$name.err" && problem="$problem; uncaught exception: $(grep Uncaught "$work/$name.err" | head -1)"
   [ "$plots" = "$want_plots" ] || problem="$problem; $plots plots, expected $want_plots"
-  min_traces=$((1 + rotary + 1 + axes * 10))
-  [ "${traces:-0}" -ge "$min_traces" ] && [ "${traces:-0}" -le $((min_traces + 2)) ] ||
-    problem="$problem; $traces traces, expected $min_traces to $((min_traces + 2))"
+  [ "${traces:-0}" -ge "$min_traces" ] && [ "${traces:-0}" -le "$max_traces" ] ||
+    problem="$problem; $traces traces, expected $min_traces to $max_traces"
   grep -q "motion time|$time_v s|" <<<"$summary" || problem="$problem; summary '$summary' lacks motion time $time_v"
   grep -q "worst ratio|$ratio_v" <<<"$summary" || problem="$problem; summary '$summary' lacks worst ratio $ratio_v"
+  local text
+  for text in "$@"; do
+    grep -qF "|$text|" "$work/$name.text" || problem="$problem; no '$text' in its tables"
+  done
   if [ -n "$problem" ]; then
     echo "FAIL $name: ${problem#; }"
     failures=$((failures + 1))
   else
     echo "ok $name: $plots plots, $traces traces, motion time $time_v s, worst ratio $ratio_v"
   fi
+}
+axes_of() { echo $(($(head -1 "$1" | tr ',' '\n' | wc -l) - 1)); }
+# Traces of a run's report: path (+ tool axis in 5-axis, + surface), feed (+ programmed feed,
+# + deciding constraint), per axis 4 series and 6 limit lines.
+path_traces() {  # csv job
+  local axes rotary surface
+  axes=$(axes_of "$1")
+  rotary=$((axes > 3 ? 1 : 0))
+  surface=$(grep -q '^\[surface\]' "$2" && echo 1 || echo 0)
+  echo $((1 + rotary + surface + 1 + axes * 10))
+}
+
+for job in "$root"/samples/jobs/*.toml; do
+  name=$(basename "$job" .toml)
+  "$dtis" run "$job" -o "$work/$name.csv" --limiters "$work/$name.lim.csv" \
+    --report "$work/$name.html" -q || true
+  min=$(path_traces "$work/$name.csv" "$job")
+  check "$name" "$work/$name.html" "$work/$name.csv" "$(machine_of "$job")" \
+    $((2 + $(axes_of "$work/$name.csv"))) "$min" $((min + 2))
 done
-browse --window-size=1400,2400 --screenshot="$out/report_surface_tilt10_xyzac.png" \
-  "file://$work/surface_tilt10_xyzac.html" >/dev/null 2>&1
-test -s "$out/report_surface_tilt10_xyzac.png"
-echo "screenshot: $out/report_surface_tilt10_xyzac.png"
+
+# The 5-axis surface job three more ways.
+job=$root/samples/jobs/surface_tilt10_xyzac.toml
+machine=$(machine_of "$job")
+name=surface_tilt10_xyzac
+min=$(path_traces "$work/$name.csv" "$job")
+# dtis report of the run's files, with its job and limiter report: the same plots and traces as the
+# run's own report (the surface, the programmed feed, the deciding constraint).
+"$dtis" report "$work/$name.csv" --job "$job" --limiters "$work/$name.lim.csv" -o "$work/file.html"
+check report-file "$work/file.html" "$work/$name.csv" "$machine" 7 $((min + 2)) $((min + 2))
+# What was streamed, stop included.
+"$dtis" stream "$job" --to "$work/stream.txt" --record "$work/stream.csv" --report "$work/stream.html" -q
+check stream "$work/stream.html" "$work/stream.csv" "$machine" 7 $((min + 2)) $((min + 2))
+# The comparison: its table (every variant's name), one feed curve per variant (+ programmed feed)
+# on a plot of its own, and the exact-surface run in full.
+"$dtis" compare "$job" --csv "$work/compare.csv" --report "$work/compare.html" -q >/dev/null
+mapfile -t variants < <(tail -n +2 "$work/compare.csv" | cut -d, -f1)
+grep '^DTIS' "$work/compare.csv" >/dev/null
+# The exact variant's setpoints are the run's (the same passes and links, planned the same way).
+check compare "$work/compare.html" "$work/$name.csv" "$machine" 8 \
+  $((min + 2 + ${#variants[@]} + 1)) $((min + 2 + ${#variants[@]} + 1)) "${variants[@]}"
+
+# Static figures: every plot of the report, as PNG (1200 px wide) and SVG.
+"$dtis" figures "$work/$name.html" -o "$out/figures_$name" -q
+figs=0
+for plot in path feed axis-X axis-Y axis-Z axis-A axis-C; do
+  png=$out/figures_$name/$plot.png svg=$out/figures_$name/$plot.svg
+  if [ "$(head -c 8 "$png" | od -An -tx1 | tr -d ' \n')" != 89504e470d0a1a0a ]; then
+    echo "FAIL figures: $png is not a PNG"
+  elif [ "$(od -An -tu1 -j16 -N4 "$png" | awk '{print $1 * 16777216 + $2 * 65536 + $3 * 256 + $4}')" != 1200 ]; then
+    echo "FAIL figures: $png is not 1200 px wide"
+  elif ! head -c 200 "$svg" | grep -q '^<svg'; then
+    echo "FAIL figures: $svg is not an SVG"
+  else
+    figs=$((figs + 1))
+  fi
+done
+extra=$(find "$out/figures_$name" -type f | wc -l)
+if [ $figs -eq 7 ] && [ "$extra" -eq 14 ]; then
+  echo "ok figures: 7 plots as PNG and SVG in $out/figures_$name"
+else
+  echo "FAIL figures: $figs of 7 plots good, $extra files"
+  failures=$((failures + 1))
+fi
+
+browse --window-size=1400,2400 --screenshot="$out/report_$name.png" "file://$work/$name.html" \
+  >/dev/null 2>&1
+test -s "$out/report_$name.png"
+echo "screenshot: $out/report_$name.png"
 [ $failures -eq 0 ]

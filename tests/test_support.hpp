@@ -1,11 +1,14 @@
 // Shared helpers for the tests: the random-suite knobs, sample paths, and an in-memory sink.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "dtis/core/error.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/kinematics/machines.hpp"
 
@@ -16,6 +19,17 @@ extern unsigned long g_seed;  // base seed
 
 inline std::string Source(const std::string& relative) {
   return std::string(DTIS_SOURCE_DIR) + "/" + relative;
+}
+
+// `f` throws dtis::Error with `fragment` in its message.
+template <typename F>
+void ExpectError(F&& f, const std::string& fragment) {
+  try {
+    f();
+    FAIL() << "expected an error containing '" << fragment << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
 }
 
 struct Collect final : interp::SetpointSink {

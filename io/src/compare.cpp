@@ -117,6 +117,8 @@ void Finish(const interp::ProgramResult& program, const std::vector<int>& pass_o
   TableSink sink(machine, period_s);
   for (const auto& sp : program.setpoints) sink.Accept(sp);
   v->verify = interp::Verify(sink.Table(), machine);
+  v->table = sink.Table();
+  v->limiters = sink.Limiters();
   v->motion_time_s = v->verify.motion_time_s;
   v->pass_time_s = 0.0;
   for (std::size_t k = 0; k < pass_of.size(); ++k) {
@@ -429,15 +431,13 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   return r;
 }
 
-namespace {
-
-std::vector<std::string> Header() {
+std::vector<std::string> CompareHeader() {
   return {"variant",         "blocks / poles",    "time (s)",        "passes (s)",
           "export dev (um)", "export axis (deg)", "motion dev (um)", "motion axis (deg)",
           "worst ratio",     "limiting axes",     "compute (s)"};
 }
 
-std::vector<std::string> Cells(const VariantResult& v) {
+std::vector<std::string> CompareCells(const VariantResult& v) {
   const bool exact = v.kind == VariantResult::Kind::kExact;
   return {v.name,
           exact ? "-" : fmt::format("{}", v.blocks),
@@ -452,11 +452,9 @@ std::vector<std::string> Cells(const VariantResult& v) {
           fmt::format("{:.2f}", v.compute_s)};
 }
 
-}  // namespace
-
 std::string FormatCompareText(const CompareResult& r) {
-  std::vector<std::vector<std::string>> rows{Header()};
-  for (const auto& v : r.variants) rows.push_back(Cells(v));
+  std::vector<std::vector<std::string>> rows{CompareHeader()};
+  for (const auto& v : r.variants) rows.push_back(CompareCells(v));
   std::vector<std::size_t> width(rows.front().size(), 0);
   for (const auto& row : rows) {
     for (std::size_t i = 0; i < row.size(); ++i) width[i] = std::max(width[i], row[i].size());
@@ -494,11 +492,11 @@ std::string FormatCompareMarkdown(const CompareResult& r) {
     for (const auto& c : cells) out += " " + c + " |";
     return out + "\n";
   };
-  std::string out = line(Header());
+  std::string out = line(CompareHeader());
   out += "|";
-  for (std::size_t i = 0; i < Header().size(); ++i) out += i == 0 ? "---|" : "---:|";
+  for (std::size_t i = 0; i < CompareHeader().size(); ++i) out += i == 0 ? "---|" : "---:|";
   out += "\n";
-  for (const auto& v : r.variants) out += line(Cells(v));
+  for (const auto& v : r.variants) out += line(CompareCells(v));
   return out;
 }
 

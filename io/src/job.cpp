@@ -10,6 +10,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/core/toml_reader.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/face_mesh.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/program.hpp"
@@ -333,15 +334,27 @@ std::unique_ptr<PathSource> BuildPath(const Job& job) {
   }
 }
 
+namespace {
+
+std::string FaceName(const SurfaceSpec& spec) {
+  return fmt::format("{} face {}", spec.step_file, spec.face);
+}
+
+// The job's face, set up on the machine as the job places it.
+TopoDS_Face PlacedFace(const SurfaceSpec& spec) {
+  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
+  return geometry::PlaceFace(model.Face(spec.face), spec.rotate_deg, spec.translate_mm);
+}
+
+}  // namespace
+
 SurfaceSetup SetUpSurface(const Job& job) {
   const SurfaceSpec& spec = *job.surface;
   if (job.interpolator != InterpolatorKind::kVpop) {
     throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
   }
-  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
-  const TopoDS_Face placed =
-      geometry::PlaceFace(model.Face(spec.face), spec.rotate_deg, spec.translate_mm);
-  const geometry::FaceSurface face(placed, fmt::format("{} face {}", spec.step_file, spec.face));
+  const TopoDS_Face placed = PlacedFace(spec);
+  const geometry::FaceSurface face(placed, FaceName(spec));
   SurfaceSetup setup;
   setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
   setup.safe_z_mm = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
@@ -350,6 +363,11 @@ SurfaceSetup SetUpSurface(const Job& job) {
   setup.link_options = job.vpop;
   if (spec.link_feed_mm_s > 0.0) setup.link_options.feed_mm_s = spec.link_feed_mm_s;
   return setup;
+}
+
+geometry::FaceMesh MeshJobSurface(const Job& job) {
+  if (!job.surface) throw Error("{}: not a surface job: no face to mesh", job.file);
+  return geometry::MeshFace(PlacedFace(*job.surface), FaceName(*job.surface));
 }
 
 PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const SurfaceSetup& setup,

@@ -11,7 +11,6 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/file_text.hpp"
-#include "dtis/io/atomic_file.hpp"
 #include "dtis/io/setpoint_file.hpp"
 
 #ifndef DTIS_PLOTLY_JS
@@ -27,6 +26,10 @@ constexpr double kDeg = 180.0 / std::numbers::pi;
 // Points of the 3D tool path drawn at most, and tool-axis segments in 5-axis.
 constexpr std::size_t kPathPoints = 20000;
 constexpr std::size_t kAxisSegments = 60;
+// The face is drawn this far around the path's box: the larger of an absolute margin and a fraction
+// of the box's diagonal.
+constexpr double kSurfaceMarginMm = 5.0;
+constexpr double kSurfaceMarginFraction = 0.25;
 
 // k-th backward difference of `x` over dt, 0 where it is not defined yet (the rows before the
 // first are the first row held, as the verifier reads a file).
@@ -34,6 +37,28 @@ std::vector<double> Derivative(const std::vector<double>& x, double dt) {
   std::vector<double> d(x.size(), 0.0);
   for (std::size_t i = 1; i < x.size(); ++i) d[i] = (x[i] - x[i - 1]) / dt;
   return d;
+}
+
+// The tool tip (and axis) in the workpiece at each row, from the machine's forward transform, and
+// the tip's feed (mm/min) by backward differences.
+struct TipPath {
+  std::vector<Pose> poses;
+  std::vector<double> feed;
+};
+TipPath Tip(const Machine& machine, const interp::SetpointTable& table, double dt) {
+  const std::size_t n = table.Rows();
+  const FileUnits units(machine);
+  std::vector<double> row(table.columns.size());
+  TipPath tip;
+  tip.poses.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t i = 0; i < row.size(); ++i) row[i] = table.columns[i][k];
+    tip.poses[k] = machine.Forward(units.ToPlanner(row));
+  }
+  tip.feed.assign(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k)
+    tip.feed[k] = (tip.poses[k].tip - tip.poses[k - 1].tip).norm() / dt * 60.0;
+  return tip;
 }
 
 ordered_json Series(const std::vector<double>& t, const std::vector<double>& y) {
@@ -97,11 +122,18 @@ th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
 <script>@PLOTLY@</script>
 </head><body data-report-status="loading" data-console-errors="0">
 <h1>dtis report: <span id="title"></span></h1>
+<div id="compare-section" hidden>
+<h2>Comparison: the same passes from exports and on the exact surface</h2>
+<table id="compare"></table><ul id="compare-notes"></ul>
+<h2>Feed against time, every variant</h2><div id="compare-feed" class="plot" data-figure="compare-feed" style="height:520px"></div>
+<h2 id="shown"></h2>
+</div>
 <table id="summary"></table>
-<h2>Tool path, coloured by feed</h2><div id="path" class="plot" style="height:600px"></div>
+<h2>Tool path, coloured by feed</h2><div id="path" class="plot" data-figure="path" style="height:600px"></div>
 <h2>Feed against time, and the constraint that decided each period</h2>
-<div id="feed" class="plot" style="height:520px"></div>
+<div id="feed" class="plot" data-figure="feed" style="height:520px"></div>
 <h2>Axes against their limits</h2><div id="axes"></div>
+<div id="figures" hidden></div>
 <script>
 const DATA = @DATA@;
 window.addEventListener('error', e => { document.body.dataset.reportStatus = 'error: ' + e.message; });
@@ -124,11 +156,32 @@ function summary() {
   t.appendChild(row(['axis', '|v| / limit', '|a| / limit', '|j| / limit'], true));
   for (const a of s.axes) t.appendChild(row([a.name, a.v_ratio.toFixed(6), a.a_ratio.toFixed(6), a.j_ratio.toFixed(6)]));
 }
+function compareSection() {
+  const c = DATA.compare;
+  if (!c) return [];
+  document.getElementById('compare-section').hidden = false;
+  const t = document.getElementById('compare');
+  t.appendChild(row(c.header, true));
+  for (const r of c.rows) t.appendChild(row(r));
+  for (const n of c.notes) { const li = document.createElement('li'); li.textContent = 'note: ' + n; document.getElementById('compare-notes').appendChild(li); }
+  document.getElementById('shown').textContent = 'The run in full: ' + c.shown;
+  const traces = c.feeds.map(f => ({ type: 'scattergl', mode: 'lines', name: f.name, x: f.t, y: f.y }));
+  if (DATA.programmed_feed > 0) {
+    const t1 = Math.max(...c.feeds.map(f => f.t[f.t.length - 1]));
+    traces.push({ type: 'scattergl', mode: 'lines', name: 'programmed feed', x: [0, t1], y: [DATA.programmed_feed, DATA.programmed_feed],
+                  line: { color: '#d62728', dash: 'dash' } });
+  }
+  return [Plotly.newPlot('compare-feed', traces, { margin: { t: 10 }, xaxis: { title: { text: 't (s)' } },
+    yaxis: { title: { text: 'feed (mm/min)' } }, legend: { orientation: 'h' } }, { responsive: true })];
+}
 function pathPlot() {
-  const p = DATA.path, traces = [{
+  const p = DATA.path, traces = [];
+  if (DATA.surface) { const f = DATA.surface; traces.push({ type: 'mesh3d', name: 'surface', x: f.x, y: f.y, z: f.z, i: f.i, j: f.j, k: f.k,
+    color: '#b8c4d0', opacity: 0.55, flatshading: false, hoverinfo: 'skip', lighting: { ambient: 0.7, diffuse: 0.5, specular: 0.1 } }); }
+  traces.push({
     type: 'scatter3d', mode: 'lines', name: 'tool tip', x: p.x, y: p.y, z: p.z,
     line: { width: 5, color: p.feed, colorscale: 'Jet', cmin: 0, showscale: true, colorbar: { title: { text: 'mm/min' } } },
-    hovertemplate: 'x %{x:.3f}<br>y %{y:.3f}<br>z %{z:.3f}<br>feed %{line.color:.0f} mm/min<extra></extra>' }];
+    hovertemplate: 'x %{x:.3f}<br>y %{y:.3f}<br>z %{z:.3f}<br>feed %{line.color:.0f} mm/min<extra></extra>' });
   if (p.axis) traces.push({ type: 'scatter3d', mode: 'lines', name: 'tool axis', x: p.axis.x, y: p.axis.y, z: p.axis.z,
                             line: { width: 2, color: '#555' }, hoverinfo: 'skip' });
   return Plotly.newPlot('path', traces, { margin: { t: 10, l: 0, r: 0, b: 0 }, showlegend: false,
@@ -146,7 +199,7 @@ function feedPlot() {
     yaxis2: { domain: [0, 0.34], type: 'category', automargin: true } }, { responsive: true });
 }
 function axisPlot(a) {
-  const div = document.createElement('div'); div.className = 'plot'; div.style.height = '760px';
+  const div = document.createElement('div'); div.className = 'plot'; div.style.height = '760px'; div.dataset.figure = 'axis-' + a.name;
   document.getElementById('axes').appendChild(div);
   const names = ['position', 'velocity', 'acceleration', 'jerk'], units = [a.unit, a.unit + '/s', a.unit + '/s²', a.unit + '/s³'];
   const series = [a.position, a.velocity, a.acceleration, a.jerk], limits = [null, a.vmax, a.amax, a.jmax];
@@ -162,12 +215,42 @@ function axisPlot(a) {
   }
   return Plotly.newPlot(div, traces, layout, { responsive: true });
 }
+// Static figures (dtis figures): with #figures=png,svg in the address, every plot is exported as
+// an image with Plotly.toImage, base64 in a pre element of #figures that a headless browser's DOM
+// dump carries out (io/src/figures.cpp reads them).
+function base64(text) {
+  const bytes = new TextEncoder().encode(text);
+  let binary = '';
+  for (let i = 0; i < bytes.length; i += 0x8000) binary += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+  return btoa(binary);
+}
+async function figures(formats, width) {
+  const out = document.getElementById('figures');
+  for (const div of document.querySelectorAll('[data-figure]')) {
+    if (!div.data) continue;  // not plotted (no comparison)
+    for (const format of formats) {
+      const url = await Plotly.toImage(div, { format, width, height: div.clientHeight });
+      const payload = url.slice(url.indexOf(',') + 1);
+      const pre = document.createElement('pre');
+      pre.className = 'figure';
+      pre.dataset.name = div.dataset.figure;
+      pre.dataset.format = format;
+      pre.textContent = format === 'svg' ? base64(decodeURIComponent(payload)) : payload;
+      out.appendChild(pre);
+    }
+  }
+}
+const wanted = new URLSearchParams(location.hash.slice(1));
 summary();
-Promise.all([pathPlot(), feedPlot(), ...DATA.axes.map(axisPlot)]).then(plots => {
+Promise.all([...compareSection(), pathPlot(), feedPlot(), ...DATA.axes.map(axisPlot)]).then(async plots => {
   document.body.dataset.traces = plots.reduce((n, p) => n + p.data.length, 0);
   document.body.dataset.plots = plots.length;
+  if (wanted.has('figures')) {
+    await figures(wanted.get('figures').split(','), +(wanted.get('width') || 1200));
+    document.body.dataset.figures = 'done';
+  }
   if (document.body.dataset.reportStatus === 'loading') document.body.dataset.reportStatus = 'ok';
-}, e => { document.body.dataset.reportStatus = 'error: ' + e; });
+}).catch(e => { document.body.dataset.reportStatus = 'error: ' + e; });
 </script></body></html>
 )html";
 
@@ -232,17 +315,7 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
   const double dt = verify.period_s;
   const auto axes = machine.Axes();
 
-  // The tool tip (and axis) in the workpiece, from the machine's forward transform.
-  const FileUnits units(machine);
-  std::vector<double> row(axes.size());
-  std::vector<Pose> poses(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    for (std::size_t i = 0; i < axes.size(); ++i) row[i] = table.columns[i][k];
-    poses[k] = machine.Forward(units.ToPlanner(row));
-  }
-  std::vector<double> feed(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k)
-    feed[k] = (poses[k].tip - poses[k - 1].tip).norm() / dt * 60.0;
+  const auto [poses, feed] = Tip(machine, table, dt);
 
   ordered_json data;
   data["title"] = in.title;
@@ -301,6 +374,60 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
     }
     data["path"]["axis"] = {{"x", std::move(ax)}, {"y", std::move(ay)}, {"z", std::move(az)}};
   }
+  if (in.surface) {
+    // The face around the path: triangles with a vertex within a margin of the path's box (a short
+    // pass on a large face stays visible), to the micron (a display needs no more).
+    Eigen::Vector3d lo = poses[0].tip, hi = poses[0].tip;
+    for (const auto& p : poses) {
+      lo = lo.cwiseMin(p.tip);
+      hi = hi.cwiseMax(p.tip);
+    }
+    const double margin = std::max(kSurfaceMarginMm, kSurfaceMarginFraction * (hi - lo).norm());
+    lo.array() -= margin;
+    hi.array() += margin;
+    const auto& vertices = in.surface->vertices;
+    const auto near = [&](int v) {
+      const Eigen::Vector3d& p = vertices[static_cast<std::size_t>(v)];
+      return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all();
+    };
+    std::vector<int> index(vertices.size(), -1);
+    ordered_json x = ordered_json::array(), y = ordered_json::array(), z = ordered_json::array(),
+                 i = ordered_json::array(), j = ordered_json::array(), k = ordered_json::array();
+    const auto micron = [](double mm) { return std::round(mm * 1e3) / 1e3; };
+    const auto vertex = [&](int v) {
+      int& at = index[static_cast<std::size_t>(v)];
+      if (at < 0) {
+        const Eigen::Vector3d& p = vertices[static_cast<std::size_t>(v)];
+        at = static_cast<int>(x.size());
+        x.push_back(micron(p.x()));
+        y.push_back(micron(p.y()));
+        z.push_back(micron(p.z()));
+      }
+      return at;
+    };
+    for (const auto& t : in.surface->triangles) {
+      if (!near(t[0]) && !near(t[1]) && !near(t[2])) continue;
+      i.push_back(vertex(t[0]));
+      j.push_back(vertex(t[1]));
+      k.push_back(vertex(t[2]));
+    }
+    data["surface"] = {{"x", std::move(x)}, {"y", std::move(y)}, {"z", std::move(z)},
+                       {"i", std::move(i)}, {"j", std::move(j)}, {"k", std::move(k)}};
+  }
+  if (in.compare) {
+    ordered_json rows = ordered_json::array(), feeds = ordered_json::array();
+    for (const auto& v : in.compare->variants) {
+      rows.push_back(CompareCells(v));
+      ordered_json series = Series(v.table.t, Tip(machine, v.table, dt).feed);
+      series["name"] = v.name;
+      feeds.push_back(std::move(series));
+    }
+    data["compare"] = {{"header", CompareHeader()},
+                       {"rows", std::move(rows)},
+                       {"notes", in.compare->notes},
+                       {"feeds", std::move(feeds)},
+                       {"shown", in.shown}};
+  }
   data["feed"] = Series(table.t, feed);
   data["limiters"] = LimiterBand(in);
 
@@ -344,12 +471,6 @@ std::string LoadPlotly() {
         path.empty() ? "(no path built in)" : path);
   }
   return std::move(*plotly);
-}
-
-void WriteReport(const ReportInput& input, const std::string& plotly_js, const std::string& path) {
-  AtomicFile out(path);
-  out.Write(RenderReport(input, plotly_js));
-  out.Commit();
 }
 
 }  // namespace dtis::io

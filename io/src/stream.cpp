@@ -438,6 +438,14 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
     const double t = static_cast<double>(written) * o_.period_s;
     out.Write({written, e.sp.index, e.sp.s, units, e.segment});
     if (record) record->Row(t, units);
+    if (o_.keep_rows) {
+      if (result.table.axes.empty()) result.table.axes = AxisNames(machine_);
+      if (result.table.columns.empty()) result.table.columns.resize(result.table.axes.size());
+      result.table.t.push_back(t);
+      for (std::size_t i = 0; i < result.table.columns.size(); ++i)
+        result.table.columns[i].push_back(units[i]);
+      result.limiters.push_back(e.sp.limiter);
+    }
     verifier.Add(t, units);
     if (!t0) t0 = Clock::now();
     ++written;

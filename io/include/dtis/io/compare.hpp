@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "dtis/interp/verifier.hpp"
+#include "dtis/interp/vpop.hpp"
 #include "dtis/io/job.hpp"
 
 namespace dtis::io {
@@ -44,6 +45,9 @@ struct VariantResult {
   std::string limiting;    // the axis constraints that decided most periods: "Z jerk 18%, ..."
   double compute_s = 0.0;  // export and planning
   std::vector<std::string> files;  // exports written
+  // The planned setpoints (file units: mm, deg) and the constraint that decided each.
+  interp::SetpointTable table;
+  std::vector<interp::LimiterId> limiters;
 };
 
 struct CompareResult {
@@ -58,6 +62,10 @@ struct CompareResult {
 
 // Throws dtis::Error naming the job, pass and what failed.
 CompareResult RunCompare(const Job& job, const CompareOptions& options = {});
+
+// The comparison table: its column names, and one variant's row.
+std::vector<std::string> CompareHeader();
+std::vector<std::string> CompareCells(const VariantResult& variant);
 
 std::string FormatCompareText(const CompareResult& result);
 std::string FormatCompareCsv(const CompareResult& result);

@@ -11,6 +11,7 @@
 #include "dtis/core/machine.hpp"
 #include "dtis/core/path_source.hpp"
 #include "dtis/geometry/arc_length.hpp"
+#include "dtis/geometry/face_mesh.hpp"
 #include "dtis/geometry/tool.hpp"
 #include "dtis/interp/taylor.hpp"
 #include "dtis/interp/verifier.hpp"
@@ -121,6 +122,8 @@ struct SurfaceSetup {
   interp::VpopOptions pass_options, link_options;
 };
 SurfaceSetup SetUpSurface(const Job& job);
+// A surface job's face as triangles, placed as the job places it (for reports).
+geometry::FaceMesh MeshJobSurface(const Job& job);
 
 struct PassProgram {
   interp::ProgramResult program;

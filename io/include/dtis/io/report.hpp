@@ -9,8 +9,10 @@
 #include <vector>
 
 #include "dtis/core/machine.hpp"
+#include "dtis/geometry/face_mesh.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/compare.hpp"
 
 namespace dtis::io {
 
@@ -24,6 +26,12 @@ struct ReportInput {
   double programmed_feed_mm_min = 0.0;      // 0: not known
   double compute_s = -1.0;                  // < 0: not known
   int passes = 0;                           // surface jobs
+  // Surface jobs: the face, drawn under the path (MeshJobSurface).
+  const geometry::FaceMesh* surface = nullptr;
+  // `dtis compare`: the comparison table and every variant's feed against time on one plot; the
+  // rest of the report shows `table`, one of its variants (the exact surface's).
+  const CompareResult* compare = nullptr;
+  std::string shown;  // with `compare`: which variant the rest of the report shows
 };
 
 // Time-series points shown per plot (min and max of each of half as many buckets).
@@ -42,8 +50,5 @@ std::string PlotlyPath();
 // plotly.js from PlotlyPath(). Throws dtis::Error when it is missing (naming the path and how to
 // get it): call it before the work the report is about, so a missing library fails at once.
 std::string LoadPlotly();
-
-// Renders the report with `plotly_js` (from LoadPlotly) and writes it atomically.
-void WriteReport(const ReportInput& input, const std::string& plotly_js, const std::string& path);
 
 }  // namespace dtis::io

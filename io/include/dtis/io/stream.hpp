@@ -112,6 +112,8 @@ struct StreamOptions {
   // With `realtime`: when nothing new is planned and fewer than this many periods are left in the
   // machine's buffer, play the stop (an underrun), periods.
   long low_water_periods = 20;
+  // Keep every row written, and the constraint that decided it, in the result (for a report).
+  bool keep_rows = false;
   // Test hook: the planner sleeps this long per setpoint, to make it fall behind.
   long slow_planner_us = 0;
 };
@@ -145,6 +147,10 @@ struct StreamResult {
   long peak_queued = 0;
   // Most rows handed over at once: an abort plays at most this many planned rows before the stop.
   long largest_handover = 0;
+  // With StreamOptions::keep_rows: the rows written (t = row * period, mm, deg) and what decided
+  // each.
+  interp::SetpointTable table;
+  std::vector<interp::LimiterId> limiters;
 };
 
 class Stream {

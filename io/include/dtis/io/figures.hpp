@@ -1,0 +1,42 @@
+// Static figures of a report (issue 7): every plot of a dtis HTML report as PNG and SVG, for
+// papers. The report itself draws them: a headless Chromium (Debian's `chromium`) opens it with
+// #figures=png,svg in the address, plotly.js exports each plot (Plotly.toImage), and the images
+// come back in the browser's DOM dump. So a figure is the very plot the report shows, drawn by the
+// same library, not a second plotting code path.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace dtis::io {
+
+struct FigureOptions {
+  std::vector<std::string> formats{"png", "svg"};  // of png, svg, jpeg, webp
+  int width_px = 1200;                             // each plot's height is the report's
+  // The browser: "" for $DTIS_CHROMIUM, else chromium (or chromium-browser, google-chrome) on PATH.
+  std::string browser;
+  double timeout_s = 300.0;  // wall clock for the browser
+};
+
+struct Figure {
+  std::string name;    // path, feed, compare-feed, axis-X, ...
+  std::string format;  // png, svg, ...
+  std::string bytes;   // the file's content
+};
+
+// Renders the report's figures and writes each as OUT_DIR/NAME.FORMAT, atomically (all of them are
+// rendered before the first is written). Returns the files written. Throws dtis::Error naming the
+// report and what went wrong (no browser, the page failed, a figure missing).
+std::vector<std::string> ExportFigures(const std::string& report_html, const std::string& out_dir,
+                                       const FigureOptions& options = {});
+
+// The figures a report's DOM dump carries (<pre class="figure" data-name data-format>BASE64</pre>).
+// Throws dtis::Error naming `source` when one is malformed.
+std::vector<Figure> ParseFigures(std::string_view dom, const std::string& source);
+
+// Standard base64 (RFC 4648, padding optional, whitespace ignored). Throws dtis::Error on any other
+// character.
+std::string DecodeBase64(std::string_view text);
+
+}  // namespace dtis::io
