@@ -288,6 +288,29 @@ TEST(GcodeProgram, SamplesPlanWithinEveryLimit) {
   }
 }
 
+// A link of a plane_cl G1 export (retract, traverse, plunge through a 0.44 mm block) at a feed
+// above any single axis' velocity: the planner used to stop at rest in the corner before the
+// plunge and find no step forward (its linear model of q(s), taken 2 um ahead in a corner of
+// 0.03 mm radius, left no s for X and Y at once), and failed with "no step forward respects the
+// axis limits even from rest".
+TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const io::GcodeProgram p = io::ParseGcode(
+      "G21 G90\nG0 X-10.099248 Y-5.288789 Z5.726022\n"
+      "G1 Z10.726022 F40000\nG1 Z11.546276\nG1 X-8.148618 Y-8.669506\nG1 Z11.107334\n"
+      "G1 Z6.107334\n",
+      "link.ngc");
+  interp::VpopOptions o;
+  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, {});
+  const interp::ProgramResult r = interp::PlanProgram(plan.segments, *machine, {});
+  io::TableSink sink(*machine, o.period_s);
+  for (const auto& sp : r.setpoints) sink.Accept(sp);
+  const auto report = interp::Verify(sink.Table(), *machine);
+  EXPECT_TRUE(report.Passed()) << report.worst;
+  EXPECT_NEAR(r.setpoints.back().s, *plan.paths.front()->Length(), 1e-9);
+}
+
 TEST(GcodeProgram, BadProgramsNameTheLine) {
   const auto machine = Cartesian(500, 2500, 5000);
   interp::VpopOptions o;
