@@ -197,9 +197,8 @@ VariantResult G1Variant(const Context& c, double tol) {
   }
   std::vector<int> pass_of;
   int next = 0;
-  for (const auto& seg : plan.segments) {
-    pass_of.push_back(dynamic_cast<const geometry::G1Path*>(seg.path) ? next++ : -1);
-  }
+  for (std::size_t k = 0; k < plan.segments.size(); ++k)
+    pass_of.push_back(plan.rapid[k] ? -1 : next++);
   if (next != static_cast<int>(n)) {
     throw Error("{}: {}: the program has {} contours for {} passes", c.job.file, v.name, next, n);
   }

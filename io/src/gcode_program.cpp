@@ -71,9 +71,23 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
   Vector3d chain_tip = tip, chain_axis = axis;
   double chain_feed = 0.0;
   int chain_first_line = 0;
+  bool chain_rapid = false;
 
   const auto flush = [&] {
     if (chain.empty()) return;
+    if (chain_rapid && chain.size() == 1) {
+      // A lone rapid: the straight move it is.
+      interp::VpopOptions o = base;
+      o.feed_mm_s = rapid;
+      std::unique_ptr<PathSource> path =
+          geometry::StraightMove(chain_tip, chain[0].tip, chain_axis, chain[0].axis);
+      plan.segments.push_back(
+          {path.get(), o, fmt::format("{}:{}: rapid", program.file, chain[0].line)});
+      plan.rapid.push_back(true);
+      plan.paths.push_back(std::move(path));
+      chain.clear();
+      return;
+    }
     geometry::CornerOptions corners = options.corners;
     corners.feed_mm_s = chain_feed;
     std::unique_ptr<geometry::G1Path> path;
@@ -83,14 +97,15 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
       throw Error("{}: {}", program.file, e.what());
     }
     plan.corners += static_cast<int>(path->Corners().size());
-    plan.length_mm += *path->Length();
+    if (!chain_rapid) plan.length_mm += *path->Length();
     interp::VpopOptions o = base;
     o.feed_mm_s = chain_feed;
-    plan.segments.push_back(
-        {path.get(), o,
-         fmt::format("{}: lines {}-{}", program.file, chain_first_line, chain.back().line)});
+    plan.segments.push_back({path.get(), o,
+                             fmt::format("{}: lines {}-{}{}", program.file, chain_first_line,
+                                         chain.back().line, chain_rapid ? " (rapids)" : "")});
+    plan.rapid.push_back(chain_rapid);
     plan.paths.push_back(std::move(path));
-    ++plan.chains;
+    if (!chain_rapid) ++plan.chains;
     chain.clear();
   };
 
@@ -108,25 +123,21 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
       }
       continue;  // a repeated point
     }
-    if (m.kind == GcodeMove::Kind::kRapid) {
-      flush();
-      interp::VpopOptions o = base;
-      o.feed_mm_s = rapid;
-      std::unique_ptr<PathSource> path = geometry::StraightMove(tip, m.to, axis, next_axis);
-      plan.segments.push_back({path.get(), o, fmt::format("{}: rapid", where(m))});
-      plan.paths.push_back(std::move(path));
-      ++plan.rapids;
-    } else {
-      const double feed = std::min(m.feed_mm_min / 60.0, options.max_feed_mm_s);
+    {
+      // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids.
+      const bool is_rapid = m.kind == GcodeMove::Kind::kRapid;
+      const double feed = is_rapid ? rapid : std::min(m.feed_mm_min / 60.0, options.max_feed_mm_s);
+      if (is_rapid) ++plan.rapids;
       geometry::ChainMove c;
-      c.kind = m.kind == GcodeMove::Kind::kLinear ? geometry::ChainMove::Kind::kLine
-                                                  : geometry::ChainMove::Kind::kArc;
+      c.kind = m.kind == GcodeMove::Kind::kLinear || is_rapid ? geometry::ChainMove::Kind::kLine
+                                                              : geometry::ChainMove::Kind::kArc;
       c.tip = m.to;
       c.axis = next_axis;
       c.center = m.center;
       c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
       c.line = m.line;
-      bool joins = !chain.empty() && feed == chain_feed;
+      bool joins = !chain.empty() && feed == chain_feed && is_rapid == chain_rapid &&
+                   (!is_rapid || options.blend_rapids);
       if (joins) {
         const geometry::ChainMove& prev = chain.back();
         const Vector3d prev_from = chain.size() > 1 ? chain[chain.size() - 2].tip : chain_tip;
@@ -143,6 +154,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
         chain_axis = axis;
         chain_feed = feed;
         chain_first_line = m.line;
+        chain_rapid = is_rapid;
       }
       chain.push_back(c);
     }

@@ -71,6 +71,7 @@ void ReadPath(TomlTable& root, Job* out) {
     if (auto r = path.OptionalPositiveNumber("rapid_feed_mm_min")) {
       job.path.gcode.rapid_feed_mm_s = *r / 60.0;
     }
+    if (auto b = path.OptionalBoolean("blend_rapids")) job.path.gcode.blend_rapids = *b;
     if (path.Has("tool_axis")) path.Fail("tool_axis", "a G-code program sets its own tool axis");
     path.RejectUnknown();
     return;
