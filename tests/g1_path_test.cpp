@@ -311,6 +311,47 @@ TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
   EXPECT_NEAR(r.setpoints.back().s, *plan.paths.front()->Length(), 1e-9);
 }
 
+// With blend_rapids, a retract-traverse-plunge link is one chain: the machine does not stop at the
+// G0 vertices, and the smoothed corners stay within the contour tolerance. Without, three straight
+// moves, each from rest to rest.
+TEST(GcodeProgram, BlendedRapidsDoNotStopAtTheirVertices) {
+  const auto machine = Cartesian(500, 5000, 5e6);
+  const io::GcodeProgram p =
+      io::ParseGcode("G0 X0 Y0 Z0\nG0 Z10\nG0 X40 Y30\nG0 Z0\nG1 X50 F3000\n", "link.ngc");
+  interp::VpopOptions o;
+  io::GcodeOptions go;
+  const io::GcodePlan stops = io::BuildGcodePlan(p, *machine, o, go);
+  EXPECT_EQ(stops.segments.size(), 4u);
+  EXPECT_EQ(stops.rapids, 3);
+  go.blend_rapids = true;
+  const io::GcodePlan blended = io::BuildGcodePlan(p, *machine, o, go);
+  ASSERT_EQ(blended.segments.size(), 2u);
+  EXPECT_EQ(blended.rapids, 3);
+  EXPECT_EQ(blended.rapid, (std::vector<bool>{true, false}));
+  EXPECT_EQ(blended.chains, 1);
+  const auto& chain = dynamic_cast<const geometry::G1Path&>(*blended.paths[0]);
+  ASSERT_EQ(chain.Corners().size(), 2u);
+  const auto [tip_dev, top_dev] =
+      Deviation(chain, {{0, 0, 0}, {0, 0, 10}, {40, 30, 10}, {40, 30, 0}}, {}, 0.0, 1e-3);
+  EXPECT_LE(tip_dev, go.corners.contour_tol_mm * (1 + 1e-9));
+  (void)top_dev;
+  const interp::ProgramResult r = interp::PlanProgram(blended.segments, *machine, {});
+  io::TableSink sink(*machine, o.period_s);
+  for (const auto& sp : r.setpoints) sink.Accept(sp);
+  EXPECT_TRUE(interp::Verify(sink.Table(), *machine).Passed());
+  // The feed in the rapid chain (the first segment), a millimetre away from its ends.
+  double slowest = INFINITY;
+  const double length = *chain.Length();
+  for (long k = 1; k < r.first_row[1]; ++k) {
+    const auto& a = r.setpoints[static_cast<std::size_t>(k - 1)];
+    const auto& b = r.setpoints[static_cast<std::size_t>(k)];
+    if (a.s > 1.0 && b.s < length - 1.0) slowest = std::min(slowest, (b.s - a.s) / o.period_s);
+  }
+  EXPECT_GT(slowest, 1.0) << "mm/s: the machine stopped at a G0 vertex";
+  const interp::ProgramResult stopping = interp::PlanProgram(stops.segments, *machine, {});
+  EXPECT_LT(r.total.motion_time_s, stopping.total.motion_time_s);
+}
+
 TEST(GcodeProgram, BadProgramsNameTheLine) {
   const auto machine = Cartesian(500, 2500, 5000);
   interp::VpopOptions o;

@@ -44,6 +44,14 @@ TEST(JobFile, BadInputNamesFileLineAndKey) {
   ExpectError([] { LoadJob("/nonexistent/job.toml"); }, "/nonexistent/job.toml: cannot open");
 }
 
+TEST(JobFile, GcodePathOptions) {
+  const std::string gcode = "machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n";
+  EXPECT_FALSE(ParseJob(gcode, "j.toml").path.gcode.blend_rapids);
+  EXPECT_TRUE(ParseJob(gcode + "blend_rapids = true\n", "j.toml").path.gcode.blend_rapids);
+  ExpectError([&] { ParseJob(gcode + "blend_rapids = 1\n", "j.toml"); },
+              "j.toml:5: key 'path.blend_rapids'");
+}
+
 TEST(CurveFile, BadInputNamesFileLineAndItem) {
   const std::string head = "degree = 2\n";
   const std::string poles = "poles = [[0, 0], [1, 1], [2, 0]]\n";
