@@ -712,23 +712,36 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
         mhi = std::min(mhi, b);
         band_s = std::min(band_s, box.band[i] / std::abs(g[i]));
       }
-      if (mlo > mhi) {
-        // The linear model leaves no s for all axes at once: `bad` is too far from the feasible
-        // set for it (a tight curve, where q(s) bends by more than an axis band between them).
-        // At rest, where staying is feasible and a back-off cannot help (the planner would be
-        // stuck), halve the way back to the last step and model again from closer. In motion the
-        // back-off takes over.
-        if (bad_dir > 0 || !AtRest(h)) return false;
-        next = 0.5 * (bad.s + lo);
-      } else {
-        next = std::clamp(target, mlo, mhi);
-        const double inset = std::min(1e-6 * band_s, 0.5 * (mhi - mlo));
-        if (next >= mhi) next = mhi - inset;
-        if (next <= mlo) next = mlo + inset;
-        if ((next - bad.s) * bad_dir <= 0.0) {
-          // The model disagrees with the repair direction: take a cautious step that way.
-          next = bad.s + bad_dir * std::max(std::abs(next - bad.s), 1e-3 * band_s);
+      if (mlo > mhi && bad_dir < 0) {
+        // The linear model through `bad` leaves no s for all axes at once: `bad` is too far from
+        // the feasible set for it (a tight curve, where q(s) bends by more than an axis band
+        // between them). Model from the last step instead, with the path's direction there, and
+        // look no farther than `bad`.
+        const V& g0 = direction();
+        mlo = lo;
+        mhi = std::min(hi, bad.s);
+        band_s = std::numeric_limits<double>::infinity();
+        for (int i = 0; i < n_; ++i) {
+          if (std::abs(g0[i]) < 1e-300) {
+            if (h.p0->q[i] > box.hi[i] || h.p0->q[i] < box.lo[i]) return false;
+            continue;
+          }
+          double a = h.p0->s + (box.lo[i] - h.p0->q[i]) / g0[i];
+          double b = h.p0->s + (box.hi[i] - h.p0->q[i]) / g0[i];
+          if (a > b) std::swap(a, b);
+          mlo = std::max(mlo, a);
+          mhi = std::min(mhi, b);
+          band_s = std::min(band_s, box.band[i] / std::abs(g0[i]));
         }
+      }
+      if (mlo > mhi) return false;
+      next = std::clamp(target, mlo, mhi);
+      const double inset = std::min(1e-6 * band_s, 0.5 * (mhi - mlo));
+      if (next >= mhi) next = mhi - inset;
+      if (next <= mlo) next = mlo + inset;
+      if ((next - bad.s) * bad_dir <= 0.0) {
+        // The model disagrees with the repair direction: take a cautious step that way.
+        next = bad.s + bad_dir * std::max(std::abs(next - bad.s), 1e-3 * band_s);
       }
       next = std::clamp(next, lo, hi);
       if (next == bad.s) return false;
