@@ -311,15 +311,16 @@ TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
   EXPECT_NEAR(r.setpoints.back().s, *plan.paths.front()->Length(), 1e-9);
 }
 
-// With blend_rapids, a retract-traverse-plunge link is one chain: the machine does not stop at the
-// G0 vertices, and the smoothed corners stay within the contour tolerance. Without, three straight
-// moves, each from rest to rest.
+// Blended (the default), a retract-traverse-plunge link is one chain: the machine does not stop at
+// the G0 vertices, and the smoothed corners stay within the contour tolerance. With blend_rapids
+// off, three straight moves, each from rest to rest.
 TEST(GcodeProgram, BlendedRapidsDoNotStopAtTheirVertices) {
   const auto machine = Cartesian(500, 5000, 5e6);
   const io::GcodeProgram p =
       io::ParseGcode("G0 X0 Y0 Z0\nG0 Z10\nG0 X40 Y30\nG0 Z0\nG1 X50 F3000\n", "link.ngc");
   interp::VpopOptions o;
   io::GcodeOptions go;
+  go.blend_rapids = false;
   const io::GcodePlan stops = io::BuildGcodePlan(p, *machine, o, go);
   EXPECT_EQ(stops.segments.size(), 4u);
   EXPECT_EQ(stops.rapids, 3);

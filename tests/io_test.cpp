@@ -46,8 +46,8 @@ TEST(JobFile, BadInputNamesFileLineAndKey) {
 
 TEST(JobFile, GcodePathOptions) {
   const std::string gcode = "machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n";
-  EXPECT_FALSE(ParseJob(gcode, "j.toml").path.gcode.blend_rapids);
-  EXPECT_TRUE(ParseJob(gcode + "blend_rapids = true\n", "j.toml").path.gcode.blend_rapids);
+  EXPECT_TRUE(ParseJob(gcode, "j.toml").path.gcode.blend_rapids);
+  EXPECT_FALSE(ParseJob(gcode + "blend_rapids = false\n", "j.toml").path.gcode.blend_rapids);
   ExpectError([&] { ParseJob(gcode + "blend_rapids = 1\n", "j.toml"); },
               "j.toml:5: key 'path.blend_rapids'");
 }

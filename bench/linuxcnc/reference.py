@@ -74,13 +74,13 @@ class Machine:
         return path
 
 
-BLEND_RAPIDS = False  # --blend-rapids: dtis blends consecutive G0 blocks as LinuxCNC does
+BLEND_RAPIDS = True  # --stop-at-rapids: dtis stops at every G0 vertex (blend_rapids = false)
 
 
 def dtis_run(dtis, machine, program, tol, out_csv, job_path):
     job_path.write_text(f'machine = "{machine}"\nperiod_ms = 1.0\n\n[path]\nkind = "gcode"\n'
                         f'file = "{program}"\ncontour_tol_mm = {tol}\n'
-                        + ("blend_rapids = true\n" if BLEND_RAPIDS else ""))
+                        + ("" if BLEND_RAPIDS else "blend_rapids = false\n"))
     r = run([dtis, "run", job_path, "-o", out_csv])
     return float(re.search(r"motion time\s+([0-9.]+) s", r.stderr).group(1))
 
@@ -278,11 +278,11 @@ def main():
     p.add_argument("--capture", default=str(ROOT / "build/tests/hal_capture"),
                    help="full-precision sampler reader (tests/hal_capture.cpp); halsampler (6 "
                         "decimals) when it is not built")
-    p.add_argument("--blend-rapids", action="store_true",
-                   help="dtis jobs with blend_rapids = true (G0 corners smoothed, no stop)")
+    p.add_argument("--stop-at-rapids", action="store_true",
+                   help="dtis jobs with blend_rapids = false (a stop at every G0 vertex)")
     a = p.parse_args()
     global BLEND_RAPIDS
-    BLEND_RAPIDS = a.blend_rapids
+    BLEND_RAPIDS = not a.stop_at_rapids
     capture = pathlib.Path(a.capture)
     recorder = f"{capture.resolve()} 0" if capture.exists() else "halsampler -c 0"
     print(f"recording with {recorder}", file=sys.stderr)

@@ -1,7 +1,7 @@
 // A G-code program as paths for the interpolator: every run of feed moves at one feed as one
-// smoothed chain (geometry/g1_path.hpp), every rapid as a straight move (or, with blend_rapids,
-// every run of rapids as one chain), planned rest to rest one after the other by
-// interp::PlanProgram.
+// smoothed chain (geometry/g1_path.hpp), and so every run of consecutive rapids (unless
+// blend_rapids is off: then each rapid is a straight move), planned rest to rest one after the
+// other by interp::PlanProgram.
 //
 // Coordinates: X Y Z are the tool tip in the workpiece frame and the rotary words A B C are the
 // machine's rotary axes, which set the tool axis through the machine's forward kinematics (TCP
@@ -31,11 +31,9 @@ struct GcodeOptions {
   // Largest programmed feed (mm/s): a feed override; infinity: the program's F.
   double max_feed_mm_s = std::numeric_limits<double>::infinity();
   // Consecutive rapids form one chain, their corners smoothed within the contour tolerance (as
-  // LinuxCNC blends G0 blocks under G64), instead of a stop at every G0 vertex. Off by default:
-  // with real jerk limits, crawling through a 90-degree corner of eps = 0.02 mm is slower than
-  // stopping in it (plane_cl G1 export: 174.8 s blended, 66.0 s stopping; with jerk x1000, 29.1 s
-  // blended and 34.8 s stopping).
-  bool blend_rapids = false;
+  // LinuxCNC blends G0 blocks under G64), instead of a stop at every G0 vertex. On plane_cl's G1
+  // export (bench/linuxcnc/reference.py): 59.0 s blended, 66.0 s stopping, with real jerk limits.
+  bool blend_rapids = true;
   // Arcs join their neighbours without a stop when their tangents differ by at most this (rad).
   double tangent_rad = 1e-3;
 };
