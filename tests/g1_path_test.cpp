@@ -353,6 +353,38 @@ TEST(GcodeProgram, BlendedRapidsDoNotStopAtTheirVertices) {
   EXPECT_LT(r.total.motion_time_s, stopping.total.motion_time_s);
 }
 
+// A surface job's link is one path through its waypoints, within the contour tolerance of them, and
+// is planned without a stop at them; a link that turns back (the next pass right below) is split
+// there.
+TEST(LinkMoves, OnePathThroughTheWaypointsSplitWhereItTurnsBack) {
+  const auto machine = Cartesian(500, 5000, 5e6);
+  geometry::CornerOptions corners;
+  corners.feed_mm_s = 500;
+  const Pose from{{0, 0, 0}, Vector3d::UnitZ()}, to{{30, 20, -2}, Vector3d::UnitZ()};
+  const auto moves = geometry::LinkMoves(from, to, 10.0, 5.0, *machine, corners);
+  ASSERT_EQ(moves.size(), 1u);
+  const auto& link = dynamic_cast<const geometry::G1Path&>(*moves[0]);
+  std::vector<Vector3d> waypoints;
+  for (const Pose& p : geometry::LinkWaypoints(from, to, 10.0, 5.0)) waypoints.push_back(p.tip);
+  EXPECT_EQ(waypoints.size(), 6u);
+  EXPECT_EQ(link.Corners().size(), 2u);  // retract and rise, descent and approach: collinear
+  EXPECT_LE(Deviation(link, waypoints, {}, 0.0, 1e-3).first, corners.contour_tol_mm * (1 + 1e-9));
+  interp::VpopOptions o;
+  o.feed_mm_s = 500;
+  test::Collect sink;
+  interp::PlanVpop(link, *machine, o, sink);
+  for (std::size_t k = 1; k + 1 < sink.points.size(); ++k) {
+    if (sink.points[k].s > 1.0 && sink.points[k].s < *link.Length() - 1.0) {
+      ASSERT_GT(sink.points[k + 1].s - sink.points[k].s, 1e-3 * o.period_s)
+          << "stopped at s " << sink.points[k].s;
+    }
+  }
+  // Straight down onto the next pass: up, then down the same line.
+  const auto back =
+      geometry::LinkMoves(from, {{0, 0, -1}, Vector3d::UnitZ()}, 10.0, 5.0, *machine, corners);
+  EXPECT_EQ(back.size(), 2u);
+}
+
 TEST(GcodeProgram, BadProgramsNameTheLine) {
   const auto machine = Cartesian(500, 2500, 5000);
   interp::VpopOptions o;

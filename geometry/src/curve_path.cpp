@@ -133,15 +133,4 @@ std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z,
   return points;
 }
 
-std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
-                                                   double clearance) {
-  const std::vector<Pose> points = LinkWaypoints(from, to, safe_z, clearance);
-  std::vector<std::unique_ptr<PathSource>> moves;
-  for (std::size_t k = 1; k < points.size(); ++k) {
-    moves.push_back(
-        StraightMove(points[k - 1].tip, points[k].tip, points[k - 1].axis, points[k].axis));
-  }
-  return moves;
-}
-
 }  // namespace dtis::geometry

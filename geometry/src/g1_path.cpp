@@ -522,4 +522,37 @@ std::string G1Path::Describe(const PathState& state) const {
                      p.line);
 }
 
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
+                                                   double clearance, const Machine& machine,
+                                                   const CornerOptions& corners) {
+  const std::vector<Pose> points = LinkWaypoints(from, to, safe_z, clearance);
+  std::vector<std::unique_ptr<PathSource>> moves;
+  std::size_t first = 0;  // the waypoint the current chain starts from
+  const auto flush = [&](std::size_t last) {
+    if (last == first + 1) {
+      moves.push_back(
+          StraightMove(points[first].tip, points[last].tip, points[first].axis, points[last].axis));
+    } else if (last > first + 1) {
+      std::vector<ChainMove> chain;
+      for (std::size_t k = first + 1; k <= last; ++k) {
+        ChainMove m;
+        m.tip = points[k].tip;
+        m.axis = points[k].axis;
+        m.line = static_cast<int>(k);  // the waypoint, in messages
+        chain.push_back(m);
+      }
+      moves.push_back(
+          std::make_unique<G1Path>(points[first].tip, points[first].axis, chain, machine, corners));
+    }
+    first = last;
+  };
+  for (std::size_t k = 1; k + 1 < points.size(); ++k) {
+    const Vector3d in = (points[k].tip - points[k - 1].tip).normalized();
+    const Vector3d out = (points[k + 1].tip - points[k].tip).normalized();
+    if (Angle(in, out) > std::numbers::pi - 1e-6) flush(k);  // turns back: stop there
+  }
+  flush(points.size() - 1);
+  return moves;
+}
+
 }  // namespace dtis::geometry

@@ -363,6 +363,8 @@ SurfaceSetup SetUpSurface(const Job& job) {
   setup.pass_options = job.vpop;
   setup.link_options = job.vpop;
   if (spec.link_feed_mm_s > 0.0) setup.link_options.feed_mm_s = spec.link_feed_mm_s;
+  setup.link_corners = job.compare.corners;
+  setup.link_corners.feed_mm_s = setup.link_options.feed_mm_s;
   return setup;
 }
 
@@ -402,7 +404,8 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
     const Pose to = machine.Forward(next.rows.front().q);
     std::vector<std::unique_ptr<PathSource>> moves;
     try {
-      moves = geometry::LinkMoves(from, to, setup.safe_z_mm, setup.clearance_mm);
+      moves = geometry::LinkMoves(from, to, setup.safe_z_mm, setup.clearance_mm, machine,
+                                  setup.link_corners);
     } catch (const Error& e) {
       throw Error("{}: linking pass {} to pass {}: {}", job_file, k + 1, k + 2, e.what());
     }

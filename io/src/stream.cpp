@@ -13,6 +13,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/g1_path.hpp"
 #include "dtis/interp/program.hpp"
 #include "dtis/io/gcode_program.hpp"
 
@@ -37,8 +38,14 @@ Pose StartPose(const PathSource& path, const Machine& machine) {
 // Links from where the machine is to where `next` starts, when they differ.
 class Linker {
  public:
-  Linker(const Machine& machine, interp::VpopOptions options, double clearance)
-      : machine_(machine), options_(std::move(options)), clearance_(clearance) {}
+  Linker(const Machine& machine, interp::VpopOptions options, double clearance,
+         geometry::CornerOptions corners)
+      : machine_(machine),
+        options_(std::move(options)),
+        clearance_(clearance),
+        corners_(std::move(corners)) {
+    corners_.feed_mm_s = options_.feed_mm_s;
+  }
 
   // Queues the link moves from `at` to the start of `next` (none when already there).
   void LinkTo(const std::optional<AxisVector>& at, const PathSource& next, double safe_z,
@@ -48,7 +55,7 @@ class Linker {
     const Pose to = StartPose(next, machine_);
     if ((from.tip - to.tip).norm() < 1e-9 && (from.axis - to.axis).norm() < 1e-12) return;
     if (!std::isfinite(safe_z)) safe_z = std::max(from.tip.z(), to.tip.z()) + clearance_;
-    for (auto& m : geometry::LinkMoves(from, to, safe_z, clearance_)) {
+    for (auto& m : geometry::LinkMoves(from, to, safe_z, clearance_, machine_, corners_)) {
       pending_.push_back({std::shared_ptr<const PathSource>(std::move(m)), options_, name, -1});
     }
   }
@@ -63,6 +70,7 @@ class Linker {
   const Machine& machine_;
   interp::VpopOptions options_;
   double clearance_;
+  geometry::CornerOptions corners_;
   std::deque<StreamSegment> pending_;
 };
 
@@ -71,7 +79,9 @@ class ListSegments final : public SegmentSource {
  public:
   ListSegments(std::vector<StreamSegment> list, const Machine& machine,
                std::optional<AxisVector> from, const interp::VpopOptions& link, double clearance)
-      : list_(std::move(list)), linker_(machine, link, clearance), from_(std::move(from)) {}
+      : list_(std::move(list)),
+        linker_(machine, link, clearance, geometry::CornerOptions{}),
+        from_(std::move(from)) {}
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     if (next_ >= list_.size()) return std::nullopt;
@@ -97,7 +107,7 @@ class SurfaceSegments final : public SegmentSource {
  public:
   SurfaceSegments(const Job& job, const Machine& machine, std::optional<AxisVector> from)
       : setup_(SetUpSurface(job)),
-        linker_(machine, setup_.link_options, setup_.clearance_mm),
+        linker_(machine, setup_.link_options, setup_.clearance_mm, setup_.link_corners),
         from_(std::move(from)) {}
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;

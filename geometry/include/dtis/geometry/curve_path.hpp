@@ -57,14 +57,11 @@ class LinePath final : public PathSource {
   double length_;
 };
 
-// Moves that link two poses: back off along the first tool axis by `clearance`, rise to z =
+// The poses that link two poses: back off along the first tool axis by `clearance`, rise to z =
 // safe_z, traverse (the tool axis turning with a 5-axis line pair when the two axes differ), come
-// down above the second pose and approach it along its axis. Moves of zero length are left out.
-std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
-                                                   double clearance);
-
-// The poses LinkMoves goes through, `from` and `to` included, without repeats: the same link as a
-// program of straight moves (a G-code export writes one rapid to each after the first).
+// down above the second pose and approach it along its axis; `from` and `to` included, without
+// repeats. LinkMoves (g1_path.hpp) makes paths of them; a G-code export writes one rapid to each
+// after the first.
 std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance);
 
 // The distinct knots of a curve inside its domain, ends included.

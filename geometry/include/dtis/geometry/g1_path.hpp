@@ -124,4 +124,12 @@ class G1Path final : public PathSource {
   Eigen::Vector3d axis_ = Eigen::Vector3d::UnitZ();  // 3-axis: the constant tool axis
 };
 
+// The moves that link two poses through LinkWaypoints (curve_path.hpp), as few paths as it takes:
+// one chain of straight moves whose corners are smoothed within `corners` (so the machine does not
+// stop at the waypoints), split only where the link turns back on itself. `corners.feed_mm_s` is
+// the link feed.
+std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
+                                                   double clearance, const Machine& machine,
+                                                   const CornerOptions& corners);
+
 }  // namespace dtis::geometry

@@ -120,6 +120,8 @@ struct SurfaceSetup {
   double safe_z_mm = 0.0;     // links traverse at this height
   double clearance_mm = 0.0;  // and back off this far along the tool axis first
   interp::VpopOptions pass_options, link_options;
+  // The links' corners are smoothed as the G1 variants' rapids are ([compare] contour_tol_mm ...).
+  geometry::CornerOptions link_corners;
 };
 SurfaceSetup SetUpSurface(const Job& job);
 // A surface job's face as triangles, placed as the job places it (for reports).
