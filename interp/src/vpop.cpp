@@ -130,6 +130,10 @@ struct Effective {
 // fall strictly inside the axis intervals instead of on their faces (where rounding decides).
 constexpr double kLawMargin = 1.0 - 1e-7;
 
+// Times in a row the planner may come back to rest at the same arc length, its step from there
+// halved each time (2^-30 of the first), before it reports that no step forward is possible.
+constexpr int kMaxStuckRetries = 30;
+
 // A path walked backwards from arc length `end` (its s is end - s of the path): the look-ahead
 // plans away from a slow point on it with the same planner, so that braking for the point is the
 // mirror image of accelerating away from it (Beudaert 2012, §2.5).
@@ -300,6 +304,8 @@ class Planner {
   std::vector<Step> stop_, trial_stop_;
   long stop_from_ = -1;
   VpopSummary summary_;
+  // Where the planner last came back to rest with no step forward kept, and how many times in a
+  // row: each time, the next greedy step from there is halved (Produce).
   double last_stuck_s_ = -1.0;
   // Per slow point: not planned yet, planned (ascending (s, feed)), or failed (empty).
   std::vector<std::optional<std::vector<std::pair<double, double>>>> curves_;
@@ -793,6 +799,13 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       target = std::max(soft, t.lo);
       by = soft > t.lo ? soft_by : t.lo_by;
     }
+    if (AtRest(h) && h.p0->s == last_stuck_s_) {
+      // Back at rest where the last step from rest could not be braked (the look-ahead laws
+      // overreach at this scale, e.g. a few um before the end under a tangential jerk limit):
+      // step by half as much each time, down to a step the brake law can take back.
+      target = std::max(t.lo, h.p0->s + std::ldexp(target - h.p0->s, -(stuck_count_ + 1)));
+      by = {Limiter::kBackOff, -1};
+    }
   } else {
     const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
     const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
@@ -893,7 +906,7 @@ void Planner::BackOff(long failed) {
   if (AtRest(h) && first.s == h.p0->s) {
     // Stuck at rest: no step forward is feasible from here.
     if (h.p0->s == last_stuck_s_) {
-      if (++stuck_count_ > 3) {
+      if (++stuck_count_ > kMaxStuckRetries) {
         Box box;
         const bool boxed = MakeBox(h, &box);
         const std::string left =
