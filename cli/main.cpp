@@ -512,8 +512,9 @@ int main(int argc, char** argv) {
       "report",
       "Write a self-contained HTML report of any setpoint file (a run, a stream recording, a HAL "
       "capture): the tool tip path coloured by feed, feed against time, every axis' position, "
-      "velocity, acceleration and jerk against its limits, and the verifier's summary. "
-      "`dtis run --report` adds the constraint that decided each period.");
+      "velocity, acceleration and jerk against its limits, and the verifier's summary; with --job "
+      "the programmed feed and the face, with --limiters the constraint that decided each "
+      "period.");
   ReportArgs ra;
   report->add_option("FILE", ra.setpoints, "setpoint CSV")->required();
   report->add_option("MACHINE", ra.machine, "machine file (default: the --job's)");
