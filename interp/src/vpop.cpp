@@ -669,6 +669,27 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
     const V d10x = (d0x - d10) / (sx - s1);
     return V(d10 + d10x * ((sx - s1) + (sx - s0)));
   };
+  // Where the linear model q(s) = at.q + g (s - at.s) lies in every axis' box, within [lo, hi],
+  // and the narrowest axis band in s. False when an axis the model holds still is outside its box.
+  struct ModelInterval {
+    double lo = 0.0, hi = 0.0, band_s = 0.0;
+  };
+  const auto model = [&](const Step& at, const V& g, double lo_s, double hi_s, ModelInterval* m) {
+    *m = {lo_s, hi_s, std::numeric_limits<double>::infinity()};
+    for (int i = 0; i < n_; ++i) {
+      if (std::abs(g[i]) < 1e-300) {
+        if (at.q[i] > box.hi[i] || at.q[i] < box.lo[i]) return false;
+        continue;
+      }
+      double a = at.s + (box.lo[i] - at.q[i]) / g[i];
+      double b = at.s + (box.hi[i] - at.q[i]) / g[i];
+      if (a > b) std::swap(a, b);
+      m->lo = std::max(m->lo, a);
+      m->hi = std::min(m->hi, b);
+      m->band_s = std::min(m->band_s, box.band[i] / std::abs(g[i]));
+    }
+    return true;
+  };
   // Which way s must move to repair the miss m at x: +1, -1 (0: it cannot).
   const auto repair = [&](const Step& x, const Miss& m) {
     const double g = slope(x)[m.axis];
@@ -704,43 +725,17 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
     } else if (!std::isnan(far)) {
       next = 0.5 * (bad.s + far);
     } else {
-      const auto g = slope(bad);
-      double mlo = lo, mhi = hi, band_s = std::numeric_limits<double>::infinity();
-      for (int i = 0; i < n_; ++i) {
-        if (std::abs(g[i]) < 1e-300) {
-          if (bad.q[i] > box.hi[i] || bad.q[i] < box.lo[i]) return false;
-          continue;
-        }
-        double a = bad.s + (box.lo[i] - bad.q[i]) / g[i];
-        double b = bad.s + (box.hi[i] - bad.q[i]) / g[i];
-        if (a > b) std::swap(a, b);
-        mlo = std::max(mlo, a);
-        mhi = std::min(mhi, b);
-        band_s = std::min(band_s, box.band[i] / std::abs(g[i]));
-      }
-      if (mlo > mhi && bad_dir < 0) {
+      ModelInterval m;
+      if (!model(bad, slope(bad), lo, hi, &m)) return false;
+      if (m.lo > m.hi && bad_dir < 0) {
         // The linear model through `bad` leaves no s for all axes at once: `bad` is too far from
         // the feasible set for it (a tight curve, where q(s) bends by more than an axis band
         // between them). Model from the last step instead, with the path's direction there, and
         // look no farther than `bad`.
-        const V& g0 = direction();
-        mlo = lo;
-        mhi = std::min(hi, bad.s);
-        band_s = std::numeric_limits<double>::infinity();
-        for (int i = 0; i < n_; ++i) {
-          if (std::abs(g0[i]) < 1e-300) {
-            if (h.p0->q[i] > box.hi[i] || h.p0->q[i] < box.lo[i]) return false;
-            continue;
-          }
-          double a = h.p0->s + (box.lo[i] - h.p0->q[i]) / g0[i];
-          double b = h.p0->s + (box.hi[i] - h.p0->q[i]) / g0[i];
-          if (a > b) std::swap(a, b);
-          mlo = std::max(mlo, a);
-          mhi = std::min(mhi, b);
-          band_s = std::min(band_s, box.band[i] / std::abs(g0[i]));
-        }
+        if (!model(*h.p0, direction(), lo, std::min(hi, bad.s), &m)) return false;
       }
-      if (mlo > mhi) return false;
+      if (m.lo > m.hi) return false;
+      const double mlo = m.lo, mhi = m.hi, band_s = m.band_s;
       next = std::clamp(target, mlo, mhi);
       const double inset = std::min(1e-6 * band_s, 0.5 * (mhi - mlo));
       if (next >= mhi) next = mhi - inset;
