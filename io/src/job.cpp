@@ -620,18 +620,7 @@ void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setp
                      const std::string& limiters_path) {
   if (!limiters_path.empty()) {
     AtomicFile out(limiters_path);
-    fmt::memory_buffer buf;
-    fmt::format_to(std::back_inserter(buf), "t,s,feed,limiter,axis\n");
-    const double dt = job.vpop.period_s;
-    for (std::size_t k = 0; k < r.limiters.size(); ++k) {
-      const double feed = k ? (r.arc_length[k] - r.arc_length[k - 1]) / dt : 0.0;
-      const auto& l = r.limiters[k];
-      const std::string axis =
-          l.axis >= 0 ? r.table.axes[static_cast<std::size_t>(l.axis)] : std::string();
-      fmt::format_to(std::back_inserter(buf), "{},{},{},{},{}\n", r.table.t[k], r.arc_length[k],
-                     feed, interp::LimiterName(l.kind), axis);
-    }
-    out.Write({buf.data(), buf.size()});
+    out.Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
     // Both files land together or not at all: commit the setpoints first, they matter most.
     WriteSetpoints(setpoints_path, r.table);
     out.Commit();

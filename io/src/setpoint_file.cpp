@@ -12,31 +12,51 @@
 #include "dtis/core/file_text.hpp"
 
 namespace dtis::io {
+namespace {
+
+// The lines of a text, '\r\n' or '\n' ended, numbered from 1.
+class Lines {
+ public:
+  explicit Lines(std::string_view text) : text_(text) {}
+  bool Next(std::string_view* out) {
+    if (pos_ >= text_.size()) return false;
+    std::size_t end = text_.find('\n', pos_);
+    if (end == std::string_view::npos) end = text_.size();
+    *out = text_.substr(pos_, end - pos_);
+    if (!out->empty() && out->back() == '\r') out->remove_suffix(1);
+    pos_ = end + 1;
+    ++number_;
+    return true;
+  }
+  long Number() const { return number_; }
+
+ private:
+  std::string_view text_;
+  std::size_t pos_ = 0;
+  long number_ = 0;
+};
+
+std::vector<std::string_view> SplitCommas(std::string_view line) {
+  std::vector<std::string_view> fields;
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = line.find(',', start);
+    fields.push_back(line.substr(start, comma == std::string_view::npos ? comma : comma - start));
+    if (comma == std::string_view::npos) return fields;
+    start = comma + 1;
+  }
+}
+
+constexpr std::string_view kLimiterHeader = "t,s,feed,limiter,axis";
+
+}  // namespace
 
 interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& source) {
   interp::SetpointTable table;
-  std::size_t pos = 0;
-  long line = 0;
-  const auto next_line = [&](std::string_view* out) {
-    if (pos >= text.size()) return false;
-    std::size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    *out = text.substr(pos, end - pos);
-    if (!out->empty() && out->back() == '\r') out->remove_suffix(1);
-    pos = end + 1;
-    ++line;
-    return true;
-  };
+  Lines lines(text);
   std::string_view header;
-  if (!next_line(&header)) throw Error("{}: empty file; expected a header 't,X,Y,Z...'", source);
+  if (!lines.Next(&header)) throw Error("{}: empty file; expected a header 't,X,Y,Z...'", source);
   std::vector<std::string> names;
-  for (std::size_t start = 0;;) {
-    const std::size_t comma = header.find(',', start);
-    names.emplace_back(
-        header.substr(start, comma == std::string_view::npos ? comma : comma - start));
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
+  for (std::string_view name : SplitCommas(header)) names.emplace_back(name);
   if (names.size() < 2 || names[0] != "t") {
     throw Error("{}:1: header must start with 't' then the axis names, got '{}'", source, header);
   }
@@ -46,7 +66,8 @@ interp::SetpointTable ParseSetpoints(std::string_view text, const std::string& s
   table.axes.assign(names.begin() + 1, names.end());
   table.columns.resize(table.axes.size());
   std::string_view row;
-  while (next_line(&row)) {
+  while (lines.Next(&row)) {
+    const long line = lines.Number();
     if (row.empty()) continue;
     std::size_t column = 0;
     const char* p = row.data();
@@ -92,35 +113,23 @@ interp::SetpointTable ReadSetpoints(const std::string& path) {
 
 std::vector<interp::LimiterId> ParseLimiters(std::string_view text, const std::string& source,
                                              const std::vector<std::string>& axes) {
-  constexpr std::string_view kHeader = "t,s,feed,limiter,axis";
+  Lines lines(text);
+  std::string_view row;
+  if (!lines.Next(&row)) {
+    throw Error("{}: empty file; expected a limiter report '{}'", source, kLimiterHeader);
+  }
+  if (row != kLimiterHeader) {
+    throw Error("{}:1: expected the header '{}' of a limiter report (dtis run --limiters)", source,
+                kLimiterHeader);
+  }
   std::vector<interp::LimiterId> limiters;
-  long line = 0;
-  for (std::size_t pos = 0; pos < text.size();) {
-    std::size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view row = text.substr(pos, end - pos);
-    pos = end + 1;
-    ++line;
-    if (!row.empty() && row.back() == '\r') row.remove_suffix(1);
-    if (line == 1) {
-      if (row != kHeader) {
-        throw Error("{}:1: expected the header '{}' of a limiter report (dtis run --limiters)",
-                    source, kHeader);
-      }
-      continue;
-    }
+  while (lines.Next(&row)) {
+    const long line = lines.Number();
     if (row.empty()) continue;
-    std::string_view fields[5];
-    std::size_t n = 0;
-    for (std::size_t start = 0;; ++n) {
-      const std::size_t comma = row.find(',', start);
-      if (n < 5)
-        fields[n] = row.substr(start, comma == std::string_view::npos ? comma : comma - start);
-      if (comma == std::string_view::npos) break;
-      start = comma + 1;
-    }
-    if (n + 1 != 5) {
-      throw Error("{}:{}: {} values; expected 5 (t,s,feed,limiter,axis)", source, line, n + 1);
+    const std::vector<std::string_view> fields = SplitCommas(row);
+    if (fields.size() != 5) {
+      throw Error("{}:{}: {} values; expected 5 (t,s,feed,limiter,axis)", source, line,
+                  fields.size());
     }
     for (std::size_t c = 0; c < 3; ++c) {
       double value = 0.0;
@@ -146,8 +155,23 @@ std::vector<interp::LimiterId> ParseLimiters(std::string_view text, const std::s
     }
     limiters.push_back(id);
   }
-  if (line == 0) throw Error("{}: empty file; expected a limiter report '{}'", source, kHeader);
   return limiters;
+}
+
+std::string FormatLimiters(const interp::SetpointTable& table,
+                           const std::vector<double>& arc_length,
+                           const std::vector<interp::LimiterId>& limiters, double period_s) {
+  fmt::memory_buffer buf;
+  fmt::format_to(std::back_inserter(buf), "{}\n", kLimiterHeader);
+  for (std::size_t k = 0; k < limiters.size(); ++k) {
+    const double feed = k ? (arc_length[k] - arc_length[k - 1]) / period_s : 0.0;
+    const auto& l = limiters[k];
+    const std::string axis =
+        l.axis >= 0 ? table.axes[static_cast<std::size_t>(l.axis)] : std::string();
+    fmt::format_to(std::back_inserter(buf), "{},{},{},{},{}\n", table.t[k], arc_length[k], feed,
+                   interp::LimiterName(l.kind), axis);
+  }
+  return {buf.data(), buf.size()};
 }
 
 std::vector<interp::LimiterId> ReadLimiters(const std::string& path,
@@ -223,10 +247,9 @@ TableSink::TableSink(const Machine& machine, double period_s) : units_(machine),
 }
 
 void TableSink::Accept(const interp::Setpoint& sp) {
-  table_.t.push_back(static_cast<double>(sp.index) * period_);
   double row[kMaxAxes];
   units_.FromPlanner(sp.q, row);
-  for (std::size_t i = 0; i < table_.columns.size(); ++i) table_.columns[i].push_back(row[i]);
+  table_.Append(static_cast<double>(sp.index) * period_, row);
   s_.push_back(sp.s);
   limiters_.push_back(sp.limiter);
 }

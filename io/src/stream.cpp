@@ -35,7 +35,8 @@ Pose StartPose(const PathSource& path, const Machine& machine) {
   return machine.Forward(q);
 }
 
-// Links from where the machine is to where `next` starts, when they differ.
+// Links from where the machine is to where `next` starts, when they differ, their corners smoothed
+// with `corners` (whose feed is the link feed).
 class Linker {
  public:
   Linker(const Machine& machine, interp::VpopOptions options, double clearance,
@@ -43,9 +44,7 @@ class Linker {
       : machine_(machine),
         options_(std::move(options)),
         clearance_(clearance),
-        corners_(std::move(corners)) {
-    corners_.feed_mm_s = options_.feed_mm_s;
-  }
+        corners_(std::move(corners)) {}
 
   // Queues the link moves from `at` to the start of `next` (none when already there).
   void LinkTo(const std::optional<AxisVector>& at, const PathSource& next, double safe_z,
@@ -74,13 +73,20 @@ class Linker {
   std::deque<StreamSegment> pending_;
 };
 
+// Links between jobs: corners smoothed as by default, at the link feed.
+geometry::CornerOptions LinkCorners(const interp::VpopOptions& link) {
+  geometry::CornerOptions corners;
+  corners.feed_mm_s = link.feed_mm_s;
+  return corners;
+}
+
 // Paths known up front (a line, a curve, a G-code program's contours and rapids).
 class ListSegments final : public SegmentSource {
  public:
   ListSegments(std::vector<StreamSegment> list, const Machine& machine,
                std::optional<AxisVector> from, const interp::VpopOptions& link, double clearance)
       : list_(std::move(list)),
-        linker_(machine, link, clearance, geometry::CornerOptions{}),
+        linker_(machine, link, clearance, LinkCorners(link)),
         from_(std::move(from)) {}
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
@@ -413,6 +419,10 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
 
   // ---- the feeder (this thread)
   StreamResult result;
+  if (o_.keep_rows) {
+    result.table.axes = AxisNames(machine_);
+    result.table.columns.resize(result.table.axes.size());
+  }
   const FileUnits file_units(machine_);
   interp::StreamVerifier verifier(machine_, o_.period_s);
   double units[kMaxAxes];
@@ -449,11 +459,7 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
     out.Write({written, e.sp.index, e.sp.s, units, e.segment});
     if (record) record->Row(t, units);
     if (o_.keep_rows) {
-      if (result.table.axes.empty()) result.table.axes = AxisNames(machine_);
-      if (result.table.columns.empty()) result.table.columns.resize(result.table.axes.size());
-      result.table.t.push_back(t);
-      for (std::size_t i = 0; i < result.table.columns.size(); ++i)
-        result.table.columns[i].push_back(units[i]);
+      result.table.Append(t, units);
       result.limiters.push_back(e.sp.limiter);
     }
     verifier.Add(t, units);

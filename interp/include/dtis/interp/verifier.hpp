@@ -17,6 +17,11 @@ struct SetpointTable {
   std::vector<double> t;
   std::vector<std::vector<double>> columns;  // columns[axis][row]
   std::size_t Rows() const { return t.size(); }
+  // Adds a row: one value per column.
+  void Append(double time, const double* values) {
+    t.push_back(time);
+    for (std::size_t i = 0; i < columns.size(); ++i) columns[i].push_back(values[i]);
+  }
 };
 
 struct AxisCheck {

@@ -24,6 +24,11 @@ std::vector<interp::LimiterId> ReadLimiters(const std::string& path,
                                             const std::vector<std::string>& axes);
 std::vector<interp::LimiterId> ParseLimiters(std::string_view text, const std::string& source_name,
                                              const std::vector<std::string>& axes);
+// The limiter report of a planned table: per row its time, arc length (mm), feed (mm/s) and the
+// constraint that decided it, with the axis for axis constraints.
+std::string FormatLimiters(const interp::SetpointTable& table,
+                           const std::vector<double>& arc_length,
+                           const std::vector<interp::LimiterId>& limiters, double period_s);
 
 // Writes a table atomically.
 void WriteSetpoints(const std::string& path, const interp::SetpointTable& table);
