@@ -92,12 +92,6 @@ std::string RenderJobReport(const dtis::io::Job& job, dtis::io::ReportInput in,
   return dtis::io::RenderReport(in, plotly);
 }
 
-void WriteFile(const std::string& path, const std::string& text) {
-  dtis::io::AtomicFile out(path);
-  out.Write(text);
-  out.Commit();
-}
-
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
         const std::string& report, bool quiet, int threads, long horizon) {
   dtis::io::Job job = dtis::io::LoadJob(job_path);
@@ -117,7 +111,7 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
-    WriteFile(report, RenderJobReport(job, std::move(in), plotly));
+    dtis::io::WriteFileAtomically(report, RenderJobReport(job, std::move(in), plotly));
   }
   if (!quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
@@ -310,12 +304,13 @@ int Stream(const StreamArgs& a) {
   output.Close();
   // What the machine was sent, stop included, as the report shows it.
   if (!a.report.empty() && r.rows >= 2) {
-    WriteFile(a.report,
-              RenderJobReport(job,
-                              PlannedReport(fmt::format("{} (stream, {})", job.name,
-                                                        dtis::io::StreamEndName(r.end)),
-                                            *machine, r.table, r.verify, r.limiters, r.compute_s),
-                              plotly));
+    dtis::io::WriteFileAtomically(
+        a.report,
+        RenderJobReport(
+            job,
+            PlannedReport(fmt::format("{} (stream, {})", job.name, dtis::io::StreamEndName(r.end)),
+                          *machine, r.table, r.verify, r.limiters, r.compute_s),
+            plotly));
   }
   if (!a.quiet) {
     std::fprintf(stderr, "stream           %s after %ld setpoints (%ld of them the stop to rest)\n",
@@ -413,8 +408,8 @@ int Report(const ReportArgs& a) {
   in.machine = machine.get();
   in.table = &table;
   in.limiters = std::move(limiters);
-  WriteFile(output, job ? RenderJobReport(*job, std::move(in), plotly)
-                        : dtis::io::RenderReport(in, plotly));
+  dtis::io::WriteFileAtomically(output, job ? RenderJobReport(*job, std::move(in), plotly)
+                                            : dtis::io::RenderReport(in, plotly));
   std::fprintf(stderr, "wrote            %s\n", output.c_str());
   return 0;
 }
@@ -530,13 +525,14 @@ int main(int argc, char** argv) {
       "figures",
       "Draw every plot of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
       "files for papers, with headless Chromium: the same plots, drawn by the same plotly.js.");
-  std::string figures_report, figures_dir, figures_formats = "png,svg";
+  std::string figures_report, figures_dir;
   dtis::io::FigureOptions fo;
   bool figures_quiet = false;
   figures->add_option("REPORT", figures_report, "HTML report")->required();
   figures->add_option("-o,--output", figures_dir,
                       "folder for NAME.FORMAT files (default: REPORT without .html, + _figures)");
-  figures->add_option("--format", figures_formats, "comma-separated: png, svg, jpeg, webp")
+  figures->add_option("--format", fo.formats, "comma-separated: png, svg, jpeg, webp")
+      ->delimiter(',')
       ->capture_default_str();
   figures->add_option("--width", fo.width_px, "figure width, pixels (heights as in the report)")
       ->capture_default_str()
@@ -626,16 +622,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (*report) return Report(ra);
-    if (*figures) {
-      fo.formats.clear();
-      for (std::size_t start = 0;;) {
-        const std::size_t comma = figures_formats.find(',', start);
-        fo.formats.push_back(figures_formats.substr(start, comma - start));
-        if (comma == std::string::npos) break;
-        start = comma + 1;
-      }
-      return Figures(figures_report, figures_dir, fo, figures_quiet);
-    }
+    if (*figures) return Figures(figures_report, figures_dir, fo, figures_quiet);
     if (*run) return Run(job, output, limiters, run_report, quiet, threads, run_horizon);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);

@@ -64,4 +64,10 @@ void AtomicFile::Commit() {
   committed_ = true;
 }
 
+void WriteFileAtomically(const std::string& path, std::string_view text) {
+  AtomicFile out(path);
+  out.Write(text);
+  out.Commit();
+}
+
 }  // namespace dtis::io

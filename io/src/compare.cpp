@@ -128,9 +128,7 @@ void Finish(const interp::ProgramResult& program, const std::vector<int>& pass_o
 }
 
 void WriteText(const std::string& path, const std::string& text, VariantResult* v) {
-  AtomicFile out(path);
-  out.Write(text);
-  out.Commit();
+  WriteFileAtomically(path, text);
   v->files.push_back(path);
 }
 

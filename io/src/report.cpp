@@ -351,14 +351,16 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
       {"x", std::move(px)}, {"y", std::move(py)}, {"z", std::move(pz)}, {"feed", std::move(pf)}};
   const bool five_axis =
       std::any_of(axes.begin(), axes.end(), [](const Axis& a) { return a.rotary; });
+  // The path's box, for the tool axis' length and the part of the face drawn.
+  Eigen::Vector3d box_lo = poses[0].tip, box_hi = poses[0].tip;
+  for (const auto& p : poses) {
+    box_lo = box_lo.cwiseMin(p.tip);
+    box_hi = box_hi.cwiseMax(p.tip);
+  }
+  const double extent = (box_hi - box_lo).norm();
   if (five_axis) {
     // Tool-axis segments at intervals, as long as a tenth of the path's extent.
-    Eigen::Vector3d lo = poses[0].tip, hi = poses[0].tip;
-    for (const auto& p : poses) {
-      lo = lo.cwiseMin(p.tip);
-      hi = hi.cwiseMax(p.tip);
-    }
-    const double length = std::max(1.0, 0.1 * (hi - lo).norm());
+    const double length = std::max(1.0, 0.1 * extent);
     ordered_json ax = ordered_json::array(), ay = ordered_json::array(), az = ordered_json::array();
     const std::size_t every = std::max<std::size_t>(1, n / kAxisSegments);
     for (std::size_t k = 0; k < n; k += every) {
@@ -377,14 +379,8 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
   if (in.surface) {
     // The face around the path: triangles with a vertex within a margin of the path's box (a short
     // pass on a large face stays visible), to the micron (a display needs no more).
-    Eigen::Vector3d lo = poses[0].tip, hi = poses[0].tip;
-    for (const auto& p : poses) {
-      lo = lo.cwiseMin(p.tip);
-      hi = hi.cwiseMax(p.tip);
-    }
-    const double margin = std::max(kSurfaceMarginMm, kSurfaceMarginFraction * (hi - lo).norm());
-    lo.array() -= margin;
-    hi.array() += margin;
+    const double margin = std::max(kSurfaceMarginMm, kSurfaceMarginFraction * extent);
+    const Eigen::Vector3d lo = box_lo.array() - margin, hi = box_hi.array() + margin;
     const auto& vertices = in.surface->vertices;
     const auto near = [&](int v) {
       const Eigen::Vector3d& p = vertices[static_cast<std::size_t>(v)];
@@ -418,7 +414,9 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
     ordered_json rows = ordered_json::array(), feeds = ordered_json::array();
     for (const auto& v : in.compare->variants) {
       rows.push_back(CompareCells(v));
-      ordered_json series = Series(v.table.t, Tip(machine, v.table, dt).feed);
+      // The variant the report shows in full has its feed already.
+      ordered_json series =
+          Series(v.table.t, &v.table == in.table ? feed : Tip(machine, v.table, dt).feed);
       series["name"] = v.name;
       feeds.push_back(std::move(series));
     }

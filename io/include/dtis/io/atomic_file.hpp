@@ -27,4 +27,7 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// Writes `text` as the whole of `path`, atomically.
+void WriteFileAtomically(const std::string& path, std::string_view text);
+
 }  // namespace dtis::io
