@@ -3,10 +3,14 @@
 // collinear blocks against the straight line, and a symmetric feed around a symmetric corner.
 #include "dtis/geometry/g1_path.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
+#include <random>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
@@ -237,6 +241,57 @@ TEST(G1Path, CollinearBlocksPlanLikeTheStraightLine) {
   const auto ta = interp::PlanVpop(chain, *machine, o, a).motion_time_s;
   const auto tb = interp::PlanVpop(line, *machine, o, b).motion_time_s;
   EXPECT_LE(std::abs(ta - tb), 2.0 * o.period_s);
+}
+
+// A wavy zigzag of `blocks` short G1 blocks: a corner at every vertex.
+std::vector<geometry::ChainMove> Zigzag(int blocks) {
+  std::vector<geometry::ChainMove> moves;
+  for (int k = 1; k <= blocks; ++k) {
+    geometry::ChainMove m;
+    m.tip = {0.5 * k, 0.3 * (k % 2), 0.01 * std::sin(k)};
+    m.line = k + 1;
+    moves.push_back(m);
+  }
+  return moves;
+}
+
+// Corner arc-length maps are built when a corner is first evaluated and only the latest 256 are
+// kept: on a path with many more corners, walking forwards, backwards and at random gives the
+// same poses to the last bit, and every corner is as long as its map says.
+TEST(G1Path, CornerMapsBuiltOnDemandGiveTheSamePosesInAnyOrder) {
+  const auto machine = Cartesian(500, 2500, 5e4);
+  const geometry::G1Path path({0, 0, 0}, Vector3d::UnitZ(), Zigzag(700), *machine);
+  ASSERT_GT(path.Corners().size(), 600u);
+  for (const auto& c : path.Corners()) {
+    const double length = geometry::ArcLengthOf(*c.bottom).Length();
+    EXPECT_EQ(geometry::ArcLengthOfCurve(*c.bottom), length);
+    EXPECT_NEAR(c.s1 - c.s0, length, 1e-12);
+  }
+  std::vector<double> at;
+  for (int k = 0; k <= 4000; ++k) at.push_back(*path.Length() * k / 4000.0);
+  const auto poses = [&](const std::vector<double>& where) {
+    std::map<double, Vector3d> tips;
+    int hint = 0;
+    for (const double s : where) tips[s] = path.PoseAt(s, &hint).tip;
+    return tips;
+  };
+  const auto forward = poses(at);
+  std::vector<double> order(at.rbegin(), at.rend());
+  EXPECT_EQ(poses(order), forward);
+  std::shuffle(order.begin(), order.end(), std::mt19937(7));
+  EXPECT_EQ(poses(order), forward);
+}
+
+// Corners are built in parallel; the error is the first bad corner in program order.
+TEST(G1Path, FirstBadCornerInProgramOrderIsReported) {
+  const auto machine = Cartesian(500, 2500, 5e4);
+  auto moves = Zigzag(3000);
+  for (const int k : {2900, 1200}) moves[k].tip = moves[k - 2].tip;  // turn back at k - 1
+  test::ExpectError(
+      [&] {
+        geometry::G1Path({0, 0, 0}, Vector3d::UnitZ(), moves, *machine);
+      },
+      fmt::format("line {}: the path turns back on itself", moves[1200].line));
 }
 
 TEST(G1Path, FeedIsSymmetricAroundASymmetricCorner) {

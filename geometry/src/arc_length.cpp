@@ -45,6 +45,17 @@ ArcLengthMap::ArcLengthMap(const Evaluator& derivatives, const std::vector<doubl
   }
 }
 
+double ArcLengthMap::MeasureLength(const Evaluator& derivatives,
+                                   const std::vector<double>& breaks) {
+  ArcLengthMap map;
+  map.derivatives_ = derivatives;
+  map.breaks_ = breaks;
+  // As the constructor sums them: the integral from each break to the next.
+  double s = 0.0;
+  for (std::size_t i = 1; i < breaks.size(); ++i) s = s + map.Integrate(breaks[i - 1], breaks[i]);
+  return s;
+}
+
 double ArcLengthMap::Speed(double u) const {
   Eigen::Vector3d d[2];
   derivatives_(u, 1, d, false);

@@ -15,10 +15,20 @@ std::vector<double> DistinctKnots(const BSplineCurve& curve) {
   return breaks;
 }
 
+namespace {
+ArcLengthMap::Evaluator DerivativesOf(const BSplineCurve& curve) {
+  return [&curve](double u, int order, Eigen::Vector3d* d, bool from_left) {
+    curve.Derivatives(u, order, d, from_left);
+  };
+}
+}  // namespace
+
 ArcLengthMap ArcLengthOf(const BSplineCurve& curve, const ArcLengthOptions& options) {
-  return ArcLengthMap([&curve](double u, int order, Eigen::Vector3d* d,
-                               bool from_left) { curve.Derivatives(u, order, d, from_left); },
-                      DistinctKnots(curve), options);
+  return ArcLengthMap(DerivativesOf(curve), DistinctKnots(curve), options);
+}
+
+double ArcLengthOfCurve(const BSplineCurve& curve) {
+  return ArcLengthMap::MeasureLength(DerivativesOf(curve), DistinctKnots(curve));
 }
 
 std::unique_ptr<PathSource> StraightMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to,

@@ -1,12 +1,18 @@
 #include "dtis/geometry/g1_path.hpp"
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <exception>
 #include <map>
+#include <mutex>
 #include <numbers>
+#include <span>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
@@ -49,24 +55,73 @@ double Eq8(const Axis& axis, double qs, double qss, double qsss) {
   return f;
 }
 
-// Eq. 8 on the curve's Cartesian coordinates, which are the machine's linear axes (at most three)
-// when the tool axis does not turn (an XYZ machine, or XYZAC at A = 0).
-double CartesianFeed(const BSplineCurve& curve, std::span<const Axis> linear, double feed) {
-  constexpr int kSamples = 24;
-  double best = feed;
-  for (int k = 0; k <= kSamples; ++k) {
-    Vector3d d[4];
-    curve.Derivatives(static_cast<double>(k) / kSamples, 3, d);
-    if (!(d[1].norm() > 1e-12)) continue;
-    Vector3d qs, qss, qsss;
-    ArcDerivatives(d, &qs, &qss, &qsss);
-    for (std::size_t i = 0; i < linear.size(); ++i) {
-      const int c = static_cast<int>(i);
-      best = std::min(best, Eq8(linear[i], qs[c], qss[c], qsss[c]));
+// Eq. 8 on a corner curve's Cartesian coordinates, which are the machine's linear axes (at most
+// three) when the tool axis does not turn (an XYZ machine, or XYZAC at A = 0), at 25 samples.
+//
+// The curve is linear in its control lengths: with N_i the basis functions (which sum to one, so
+// the corner point drops out of every derivative), C^(k)(u) = d_in (-l2 N_0^(k) - l1 N_1^(k)) +
+// d_out (l1 N_3^(k) + l2 N_4^(k)). The basis derivatives at the samples are tabulated once, so the
+// L2 search below evaluates no B-spline at all.
+class CornerFeed {
+ public:
+  CornerFeed(const Vector3d& d_in, const Vector3d& d_out, std::span<const Axis> linear, double feed)
+      : d_in_(d_in), d_out_(d_out), linear_(linear), feed_(feed) {}
+
+  double operator()(double l1, double l2) const {
+    const Table& n = Basis();
+    // Eq. 8 is min over samples of min(V / |q_s|, sqrt(A / |q_ss|), cbrt(J / |q_sss|)): the
+    // largest ratios first, one root each at the end.
+    double v = 0.0, a = 0.0, j = 0.0;
+    for (const auto& sample : n) {
+      Vector3d d[4];
+      for (int k = 1; k <= 3; ++k) {
+        const auto& w = sample[static_cast<std::size_t>(k)];
+        d[k] = d_in_ * (-l2 * w[0] - l1 * w[1]) + d_out_ * (l1 * w[3] + l2 * w[4]);
+      }
+      if (!(d[1].norm() > 1e-12)) continue;
+      Vector3d qs, qss, qsss;
+      ArcDerivatives(d, &qs, &qss, &qsss);
+      for (std::size_t i = 0; i < linear_.size(); ++i) {
+        const int c = static_cast<int>(i);
+        v = std::max(v, std::abs(qs[c]) / linear_[i].vmax);
+        a = std::max(a, std::abs(qss[c]) / linear_[i].amax);
+        j = std::max(j, std::abs(qsss[c]) / linear_[i].jmax);
+      }
     }
+    double f = feed_;
+    if (v > 0.0) f = std::min(f, 1.0 / v);
+    if (a > 0.0) f = std::min(f, std::sqrt(1.0 / a));
+    if (j > 0.0) f = std::min(f, std::cbrt(1.0 / j));
+    return f;
   }
-  return best;
-}
+
+ private:
+  static constexpr int kSamples = 24;
+  // [sample][derivative order 0..3][control point 0..4]
+  using Table = std::array<std::array<std::array<double, 5>, 4>, kSamples + 1>;
+  static const Table& Basis() {
+    static const Table table = [] {
+      Table t{};
+      for (std::size_t i = 0; i < 5; ++i) {
+        BSplineCurveData data{3, {0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0}, {}, {}};
+        data.poles.assign(5, Vector3d::Zero());
+        data.poles[i].x() = 1.0;
+        const BSplineCurve unit(std::move(data), "corner basis");
+        for (std::size_t k = 0; k <= kSamples; ++k) {
+          Vector3d d[4];
+          unit.Derivatives(static_cast<double>(k) / kSamples, 3, d);
+          for (std::size_t order = 0; order < 4; ++order) t[k][order][i] = d[order].x();
+        }
+      }
+      return t;
+    }();
+    return table;
+  }
+
+  Vector3d d_in_, d_out_;
+  std::span<const Axis> linear_;
+  double feed_;
+};
 
 // The largest distance of a curve from the polyline a - p - b, sampled densely.
 double DeviationFromCorner(const BSplineCurve& curve, const Vector3d& a, const Vector3d& p,
@@ -201,24 +256,29 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
   const auto linear = machine.Axes().subspan(0, std::min<std::size_t>(3, machine.Axes().size()));
 
   // Corners at interior vertices between two lines: their control lengths first (each may take
-  // up to half of either block), then the pieces.
+  // up to half of either block), then the pieces. Corners are independent of each other: they
+  // are built in parallel (a CAM program's million corners in seconds), and the first one that
+  // fails in program order is reported, whatever the threads did.
   struct Plan {
     bool corner = false;
-    double l1 = 0.0, l2 = 0.0, feed = INFINITY;
+    double l1 = 0.0, l2 = 0.0, feed = INFINITY, length = 0.0;
     std::shared_ptr<const BSplineCurve> bottom, top;
     double r_in = 0.0, r_out = 0.0;  // mm of top per mm of tip on either block (5-axis)
   };
   std::vector<Plan> plan(n + 1);
-  for (std::size_t k = 1; k < n; ++k) {
+  std::mutex failure_mutex;
+  std::size_t failed_at = n;
+  std::exception_ptr failure;
+  const auto plan_corner = [&](std::size_t k) {
     if (moves[k - 1].kind != ChainMove::Kind::kLine || moves[k].kind != ChainMove::Kind::kLine) {
-      continue;
+      return;
     }
     const double len_in = (p[k] - p[k - 1]).norm(), len_out = (p[k + 1] - p[k]).norm();
     const Vector3d d_in = (p[k] - p[k - 1]) / len_in, d_out = (p[k + 1] - p[k]) / len_out;
     const Vector3d top_in = (t[k] - t[k - 1]) / len_in, top_out = (t[k + 1] - t[k]) / len_out;
     const double turn = Angle(d_in, d_out);
     const bool top_turns = five_axis_ && (top_out - top_in).norm() > options.straight_rad;
-    if (turn <= options.straight_rad && !top_turns) continue;
+    if (turn <= options.straight_rad && !top_turns) return;
     if (turn > std::numbers::pi - 1e-9) {
       throw Error("line {}: the path turns back on itself (a 180 degree corner cannot be smoothed)",
                   moves[k].line);
@@ -230,10 +290,8 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
       // Eq. 3 with the turning angle: eps = L1 cos(alpha / 2) / 2, alpha = pi - turn.
       c.l1 = std::min(2.0 * options.contour_tol_mm / std::sin(0.5 * turn), 0.5 * l2_max);
       // L2 by Eq. 8: a coarse scan on a log scale, then golden-section refinement.
-      const auto feed = [&](double l2) {
-        return CartesianFeed(CornerCurve(p[k], d_in, d_out, c.l1, l2, c.l1, l2), linear,
-                             options.feed_mm_s);
-      };
+      const CornerFeed corner_feed(d_in, d_out, linear, options.feed_mm_s);
+      const auto feed = [&](double l2) { return corner_feed(c.l1, l2); };
       const double lo = c.l1 * (1.0 + 1e-3);
       double best = l2_max, best_feed = feed(l2_max);
       constexpr int kScan = 8;
@@ -287,7 +345,20 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
         }
       }
     }
-  }
+    c.length = ArcLengthOfCurve(*c.bottom);
+  };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, std::max<std::size_t>(n, 1), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                        try {
+                          plan_corner(k);
+                        } catch (...) {
+                          const std::lock_guard lock(failure_mutex);
+                          if (k < failed_at) failed_at = k, failure = std::current_exception();
+                        }
+                      }
+                    });
+  if (failure) std::rethrow_exception(failure);
 
   // Pieces in order: for each move, the corner at its start (if any) was added with the previous
   // move; add the move itself trimmed by the corners at both ends, then the corner at its end.
@@ -330,8 +401,7 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
       piece.line = m.line;
       piece.s0 = length_;
       piece.corner = static_cast<int>(corners_.size());
-      piece.map = std::make_shared<const ArcLengthMap>(ArcLengthOf(*corner.bottom));
-      piece.length = piece.map->Length();
+      piece.length = c.length;
       if (five_axis_) {
         const double S = piece.length;
         // The top parameter's slope and curvature at both ends, in tip arc length, that make the
@@ -372,9 +442,6 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
                   m.line);
             }
           }
-        }
-        if (options.top == TopParametrization::kTopArcLength) {
-          piece.top_map = std::make_shared<const ArcLengthMap>(ArcLengthOf(*corner.top));
         }
       }
       corner.s0 = piece.s0;
@@ -429,6 +496,20 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
   }
 }
 
+const G1Path::CornerMaps& G1Path::Maps(int corner) const {
+  if (maps_.empty()) maps_.resize(std::min(kCachedCorners, corners_.size()));
+  CornerMaps& slot = maps_[static_cast<std::size_t>(corner) % maps_.size()];
+  if (slot.corner != corner) {
+    const Corner& c = corners_[static_cast<std::size_t>(corner)];
+    slot.bottom = std::make_shared<const ArcLengthMap>(ArcLengthOf(*c.bottom));
+    slot.top = five_axis_ && top_param_ == TopParametrization::kTopArcLength
+                   ? std::make_shared<const ArcLengthMap>(ArcLengthOf(*c.top))
+                   : nullptr;
+    slot.corner = corner;
+  }
+  return slot;
+}
+
 int G1Path::Find(double s, int hint) const {
   const int last = static_cast<int>(pieces_.size()) - 1;
   int i = std::clamp(hint, 0, last);
@@ -469,8 +550,9 @@ Pose G1Path::PoseAt(double s, int* hint) const {
     }
     case Piece::Kind::kCorner: {
       const Corner& corner = corners_[static_cast<std::size_t>(p.corner)];
+      const CornerMaps& maps = Maps(p.corner);
       int map_hint = 0;
-      const double u = p.map->Parameter(local, &map_hint);
+      const double u = maps.bottom->Parameter(local, &map_hint);
       pose.tip = corner.bottom->Point(u);
       if (!five_axis_) {
         pose.axis = axis_;
@@ -489,7 +571,7 @@ Pose G1Path::PoseAt(double s, int* hint) const {
           break;
         case TopParametrization::kTopArcLength: {
           int top_hint = 0;
-          w = p.top_map->Parameter(x * p.top_map->Length(), &top_hint);
+          w = maps.top->Parameter(x * maps.top->Length(), &top_hint);
           break;
         }
       }

@@ -28,6 +28,10 @@ class ArcLengthMap {
 
   double Length() const { return nodes_.back().s; }
 
+  // The Length() a map built from these arguments has, to the last bit, without building it (a
+  // fraction of the work: the integrals between breaks, not the interpolation).
+  static double MeasureLength(const Evaluator& derivatives, const std::vector<double>& breaks);
+
   // u at arc length s (clamped to [0, Length()]). `hint` is an interval index returned earlier; it
   // is updated so that walking along the curve costs O(1).
   double Parameter(double s, int* hint) const;
@@ -51,6 +55,7 @@ class ArcLengthMap {
     double s0, inv_h;
     double c[6];  // u = c0 + c1 t + ... + c5 t^5, t = (s - s0) * inv_h
   };
+  ArcLengthMap() = default;  // for MeasureLength
   Node MakeNode(double u, double s, bool from_left) const;
   // Interpolates between a (right-sided) and b (left-sided), appending the pieces and b's
   // right-sided twin.

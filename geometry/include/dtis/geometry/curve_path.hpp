@@ -69,6 +69,8 @@ std::vector<double> DistinctKnots(const BSplineCurve& curve);
 
 // The arc-length map of a curve, broken at its distinct knots. The curve must outlive the map.
 ArcLengthMap ArcLengthOf(const BSplineCurve& curve, const ArcLengthOptions& options = {});
+// ArcLengthOf(curve).Length(), to the last bit, without building the map.
+double ArcLengthOfCurve(const BSplineCurve& curve);
 
 // A straight move of the tool tip: a line with a fixed tool axis, or, when the axis turns, the
 // 5-axis line pair whose top point (100 mm up the axis) moves linearly too. The tip must move.

@@ -107,15 +107,27 @@ class G1Path final : public PathSource {
     Eigen::Vector3d ta, tb;  // line (5-axis): top point at the start and the end
     double radius = 0.0, sweep = 0.0, dz = 0.0;  // arc: signed sweep (rad), rise (mm)
     int corner = -1;
-    std::shared_ptr<const ArcLengthMap> map, top_map;  // corner: tip arc length; top (option 3)
     double w[6] = {};  // corner (kC2): top parameter = sum w_k t^k, t = tip arc length / length
   };
+  // A corner's arc-length maps: the tip's, and the top point's (parametrization 3 only).
+  struct CornerMaps {
+    int corner = -1;
+    std::shared_ptr<const ArcLengthMap> bottom, top;
+  };
+  // Built when the corner is first evaluated; the latest kCachedCorners stay (a program of a
+  // million corners would otherwise hold a million maps). A map depends on its corner only, so
+  // one built again is the same map. The reference lasts until the next call.
+  const CornerMaps& Maps(int corner) const;
   void AddLine(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& ta,
                const Eigen::Vector3d& tb, int line);
   int Find(double s, int hint) const;
 
   std::vector<Piece> pieces_;
   std::vector<Corner> corners_;
+  // Like every PathSource of a program, a G1Path is evaluated by one thread at a time
+  // (interp/program.hpp): its map cache takes no lock.
+  static constexpr std::size_t kCachedCorners = 256;
+  mutable std::vector<CornerMaps> maps_;  // slot: corner index modulo kCachedCorners
   std::vector<SlowPoint> slow_;
   double length_ = 0.0;
   bool five_axis_ = false;
