@@ -2,6 +2,9 @@
 // real-time factor (motion time / compute time).
 //   build/bench/dtis_bench --benchmark_filter=Plan
 #include <benchmark/benchmark.h>
+#include <fmt/format.h>
+#include <sys/resource.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 
@@ -127,6 +130,8 @@ void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
   double motion = 0.0;
   dtis::interp::ProgramOptions po;
   po.threads = 1;
+  // One thread for the corners too (BuildGcodePlan builds them on all cores otherwise).
+  const tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
   for (auto _ : state) {
     const auto plan = dtis::io::BuildGcodePlan(program, *machine, job.vpop, job.path.gcode);
     const auto result = dtis::interp::PlanProgram(plan.segments, *machine, po);
@@ -160,5 +165,37 @@ void GcodePlan100k(benchmark::State& state) {
   GcodePlanOn(state, dtis::io::ParseGcode(text, "raster.ngc"), job);
 }
 BENCHMARK(GcodePlan100k)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// Loading a million-block program: reading it and smoothing its corners (what happens before the
+// first setpoint), on a program where every block turns: rows of 1 000 blocks of 0.1 mm along a
+// gentle wave in Z, 1 mm apart, 456 460 corners. Corners are built on all cores.
+//   build/bench/dtis_bench --benchmark_filter=GcodeLoad1M
+void GcodeLoad1M(benchmark::State& state) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  std::string text = "G21 G90 G17\nG0 X0 Y0 Z1\nG1 Z0 F3000\n";
+  for (int row = 0, n = 0; n < 1000000; ++row) {
+    for (int i = 0; i < 1000; ++i, ++n) {
+      const int k = row % 2 == 0 ? i : 999 - i;
+      text += fmt::format("G1 X{:.3f} Y{:.3f} Z{:.4f}\n", 0.1 * k, 1.0 * row,
+                          0.05 * std::sin(0.01 * k + row));
+    }
+  }
+  long blocks = 0, corners = 0;
+  for (auto _ : state) {
+    const auto program = dtis::io::ParseGcode(text, "wave.ngc");
+    const auto plan = dtis::io::BuildGcodePlan(program, *machine, job.vpop, job.path.gcode);
+    blocks += static_cast<long>(program.moves.size());
+    corners += plan.corners;
+  }
+  state.counters["blocks_per_s"] =
+      benchmark::Counter(static_cast<double>(blocks), benchmark::Counter::kIsRate);
+  state.counters["corners"] =
+      static_cast<double>(corners) / static_cast<double>(state.iterations());
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  state.counters["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+}
+BENCHMARK(GcodeLoad1M)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
