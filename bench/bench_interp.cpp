@@ -167,8 +167,9 @@ void GcodePlan100k(benchmark::State& state) {
 BENCHMARK(GcodePlan100k)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // Loading a million-block program: reading it and smoothing its corners (what happens before the
-// first setpoint), on a program where every block turns: rows of 1 000 blocks of 0.1 mm along a
-// gentle wave in Z, 1 mm apart, 456 460 corners. Corners are built on all cores.
+// first setpoint): rows of 1 000 blocks of 0.1 mm along a gentle wave in Z, 1 mm apart (Z written
+// to 0.1 um, so some neighbours come out collinear): 456 460 corners. Corners are built on all
+// cores.
 //   build/bench/dtis_bench --benchmark_filter=GcodeLoad1M
 void GcodeLoad1M(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");

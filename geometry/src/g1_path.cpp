@@ -347,7 +347,7 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
     }
     c.length = ArcLengthOfCurve(*c.bottom);
   };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, std::max<std::size_t>(n, 1), 256),
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, n, 256),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
                         try {
