@@ -458,5 +458,34 @@ TEST(GcodeProgram, BadProgramsNameTheLine) {
   EXPECT_EQ(error("G0 X0 Y0\n"), "p.ngc: the program never moves after its first positioning move");
 }
 
+TEST(GcodeProgram, SegmentsAreBuiltOneChainAtATime) {
+  // Three chains (the feed changes twice) read by GcodeSegments: each segment is built from the
+  // moves up to the one that ends its chain, no further, and the segments are BuildGcodePlan's.
+  const auto machine = Cartesian(500, 2500, 5000);
+  interp::VpopOptions o;
+  o.feed_mm_s = 1.0;
+  const io::GcodeProgram p = io::ParseGcode(
+      "G0 X0 Y0\nG1 X10 F600\nY10\nX0\nG1 Y20 F300\nX10\nG1 Y30 F600\nX20\nM2\n", "p.ngc");
+  std::size_t read = 0;
+  io::GcodeSegments segments(
+      [&]() -> std::optional<io::GcodeMove> {
+        if (read == p.moves.size()) return std::nullopt;
+        return p.moves[read++];
+      },
+      p.file, p.uses_rotary, *machine, o, {});
+  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, {});
+  ASSERT_EQ(plan.segments.size(), 3u);
+  const std::size_t moves_read_by_then[] = {5, 7, 8};  // the first move of the next chain, or all
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::optional<io::GcodeSegment> s = segments.Next();
+    ASSERT_TRUE(s);
+    EXPECT_EQ(read, moves_read_by_then[k]);
+    EXPECT_EQ(s->name, plan.segments[k].name);
+    EXPECT_EQ(s->options.feed_mm_s, plan.segments[k].options.feed_mm_s);
+    EXPECT_EQ(*s->path->Length(), *plan.segments[k].path->Length());
+  }
+  EXPECT_FALSE(segments.Next());
+}
+
 }  // namespace
 }  // namespace dtis

@@ -95,5 +95,38 @@ TEST(Gcode, BadBlocksNameLineAndColumn) {
   EXPECT_NE(ErrorOf("M99\n").find("p.ngc:1:1: M99 is not supported"), std::string::npos);
 }
 
+TEST(Gcode, ReaderGivesTheProgramsMovesOneAtATime) {
+  const std::string text =
+      "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F600\nX10 (comment)\n\nG2 X20 Y0 R5\nG1 G91 Y2 A3\nM2\nG1 X99\n";
+  const GcodeProgram whole = ParseGcode(text, "p.ngc");
+  GcodeReader reader(text, "p.ngc");
+  std::size_t k = 0;
+  while (const std::optional<GcodeMove> m = reader.Next()) {
+    ASSERT_LT(k, whole.moves.size());
+    const GcodeMove& w = whole.moves[k++];
+    EXPECT_EQ(m->kind, w.kind);
+    EXPECT_EQ(m->line, w.line);
+    EXPECT_EQ(m->to, w.to);
+    EXPECT_EQ(m->center, w.center);
+    EXPECT_EQ(m->rotary, w.rotary);
+    EXPECT_EQ(m->feed_mm_min, w.feed_mm_min);
+  }
+  EXPECT_EQ(k, whole.moves.size());
+  EXPECT_EQ(reader.UsesRotary(), whole.uses_rotary);
+  EXPECT_FALSE(reader.Next());  // stays at the end
+}
+
+TEST(Gcode, ReaderReportsABadBlockWhenItReachesIt) {
+  GcodeReader reader(std::string_view("G0 X0\nG1 X1 F100\nG1 X2 Q7\n"), "p.ngc");
+  ASSERT_TRUE(reader.Next());
+  ASSERT_TRUE(reader.Next());
+  try {
+    reader.Next();
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "p.ngc:3:7: word 'Q' is not supported");
+  }
+}
+
 }  // namespace
 }  // namespace dtis::io

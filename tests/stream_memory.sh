@@ -3,6 +3,9 @@
 # (about 1 minute at F600) and one of 60 rows (about 10 minutes, 600 000 setpoints) are streamed
 # as fast as the output takes them; their peak resident memory (VmHWM) must differ by less than
 # 8 MB, where keeping the setpoints would take 50 MB more (`dtis run` holds 314 MB for the long one).
+# Nor with the program's length (issue 4): 5 000 and 50 000 blocks of 0.2 mm whose feed alternates
+# (one chain, rest to rest, per block) on a machine fast enough to run a block in a few periods:
+# holding the program took 50 MB more for the long one (1 KB per block).
 set -euo pipefail
 dtis=$1
 root=$2
@@ -48,5 +51,31 @@ done
 short=$(peak_kb "$out/raster6.toml")
 long=$(peak_kb "$out/raster60.toml")
 echo "stream memory: peak $short kB for ~1 min of motion, $long kB for ~10 min"
+test "$short" -gt 0
+test "$((long - short))" -lt 8192
+
+sed -e 's/^velocity = .*/velocity = 60/' -e 's/^acceleration = .*/acceleration = 20/' \
+  -e 's/^jerk = .*/jerk = 500/' "$root/samples/machines/mikron_ucp710_xyz.toml" >"$out/fast.toml"
+for blocks in 5000 50000; do
+  {
+    echo "G21 G90 G17"
+    echo "G0 X0 Y0 Z0"
+    for ((k = 1; k <= blocks; k++)); do
+      echo "G1 X$((k / 5)).$((k % 5 * 2)) F$((k % 2 == 0 ? 6000 : 5000))"
+    done
+    echo "M2"
+  } >"$out/blocks$blocks.ngc"
+  cat >"$out/blocks$blocks.toml" <<EOF
+machine = "fast.toml"
+period_ms = 10.0
+[path]
+kind = "gcode"
+file = "blocks$blocks.ngc"
+contour_tol_mm = 0.02
+EOF
+done
+short=$(peak_kb "$out/blocks5000.toml")
+long=$(peak_kb "$out/blocks50000.toml")
+echo "stream memory: peak $short kB for 5 000 blocks, $long kB for 50 000"
 test "$short" -gt 0
 test "$((long - short))" -lt 8192

@@ -31,23 +31,27 @@ struct Word {
   int column;  // 1-based
 };
 
-class Reader {
+}  // namespace
+
+// One block at a time: the modal state, and the move the last block made (at most one).
+class GcodeReader::Blocks {
  public:
-  explicit Reader(std::string name) { program_.file = std::move(name); }
+  explicit Blocks(std::string name) : file_(std::move(name)) {}
 
   // Returns false after M2/M30 (the program's end: later lines are not read).
   bool Line(std::string_view text, int line) {
     line_ = line;
-    std::vector<Word> words;
-    if (!Words(text, &words)) return true;
-    return Block(words);
+    words_.clear();
+    if (!Words(text, &words_)) return true;
+    return Block(words_);
   }
-
-  GcodeProgram Take() { return std::move(program_); }
+  std::optional<GcodeMove>& Move() { return move_; }
+  const std::string& File() const { return file_; }
+  const std::array<bool, 3>& UsesRotary() const { return uses_rotary_; }
 
  private:
   [[noreturn]] void Fail(int column, const std::string& what) const {
-    throw Error("{}:{}:{}: {}", program_.file, line_, column, what);
+    throw Error("{}:{}:{}: {}", file_, line_, column, what);
   }
 
   // Splits a line into words, dropping comments. Returns false for an empty block.
@@ -212,7 +216,7 @@ class Reader {
       if (!w) continue;
       rotary[static_cast<std::size_t>(k)] =
           modal_.incremental ? rotary[static_cast<std::size_t>(k)] + *w : *w;
-      program_.uses_rotary[static_cast<std::size_t>(k)] = true;
+      uses_rotary_[static_cast<std::size_t>(k)] = true;
     }
     m.to = to;
     m.rotary = rotary;
@@ -227,7 +231,7 @@ class Reader {
     }
     modal_.position = to;
     modal_.rotary = rotary;
-    program_.moves.push_back(m);
+    move_ = m;
   }
 
   void Arc(GcodeMove* m, std::optional<double> i_word, std::optional<double> j_word,
@@ -264,40 +268,73 @@ class Reader {
     m->center = Eigen::Vector3d(center.x(), center.y(), modal_.position.z());
   }
 
-  GcodeProgram program_;
+  std::string file_;
   Modal modal_;
   int line_ = 0;
+  std::vector<Word> words_;
+  std::optional<GcodeMove> move_;
+  std::array<bool, 3> uses_rotary_{};
 };
+
+GcodeReader::GcodeReader(const std::string& path)
+    : blocks_(std::make_unique<Blocks>(path)),
+      in_(std::make_unique<std::ifstream>(path, std::ios::binary)) {
+  if (!*in_) throw Error("{}: cannot open the G-code file", path);
+}
+
+GcodeReader::GcodeReader(std::string_view text, const std::string& source_name)
+    : blocks_(std::make_unique<Blocks>(source_name)), text_(text) {}
+
+GcodeReader::~GcodeReader() = default;
+
+const std::string& GcodeReader::File() const { return blocks_->File(); }
+const std::array<bool, 3>& GcodeReader::UsesRotary() const { return blocks_->UsesRotary(); }
+
+std::optional<GcodeMove> GcodeReader::Next() {
+  while (!ended_) {
+    std::string_view l;
+    if (in_) {
+      if (!std::getline(*in_, line_text_)) break;
+      l = line_text_;
+    } else {
+      if (offset_ > text_.size()) break;
+      const std::size_t end = text_.find('\n', offset_);
+      l = text_.substr(offset_,
+                       end == std::string_view::npos ? text_.size() - offset_ : end - offset_);
+      offset_ = end == std::string_view::npos ? text_.size() + 1 : end + 1;
+    }
+    if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    if (!blocks_->Line(l, ++line_)) ended_ = true;
+    if (auto& move = blocks_->Move()) {
+      std::optional<GcodeMove> out;
+      out.swap(move);
+      return out;
+    }
+  }
+  ended_ = true;
+  return std::nullopt;
+}
+
+namespace {
+
+GcodeProgram ReadAll(GcodeReader& reader) {
+  GcodeProgram program;
+  program.file = reader.File();
+  while (auto move = reader.Next()) program.moves.push_back(*move);
+  program.uses_rotary = reader.UsesRotary();
+  return program;
+}
 
 }  // namespace
 
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
-  Reader reader(source_name);
-  int line = 0;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t end = text.find('\n', start);
-    std::string_view l =
-        text.substr(start, end == std::string_view::npos ? text.size() - start : end - start);
-    if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
-    if (!reader.Line(l, ++line)) break;
-    if (end == std::string_view::npos) break;
-    start = end + 1;
-  }
-  return reader.Take();
+  GcodeReader reader(text, source_name);
+  return ReadAll(reader);
 }
 
 GcodeProgram ReadGcode(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("{}: cannot open the G-code file", path);
-  Reader reader(path);
-  std::string l;
-  int line = 0;
-  while (std::getline(in, l)) {
-    if (!l.empty() && l.back() == '\r') l.pop_back();
-    if (!reader.Line(l, ++line)) break;
-  }
-  return reader.Take();
+  GcodeReader reader(path);
+  return ReadAll(reader);
 }
 
 }  // namespace dtis::io

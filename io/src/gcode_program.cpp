@@ -31,10 +31,14 @@ std::array<int, 3> RotaryWordAxes(const Machine& machine) {
 }
 
 GcodeToolAxis::GcodeToolAxis(const GcodeProgram& program, const Machine& machine)
+    : GcodeToolAxis(program.file, program.uses_rotary, machine) {}
+
+GcodeToolAxis::GcodeToolAxis(const std::string& file, const std::array<bool, 3>& uses_rotary,
+                             const Machine& machine)
     : machine_(machine), index_(RotaryWordAxes(machine)) {
   for (std::size_t k = 0; k < 3; ++k) {
-    if (program.uses_rotary[k] && index_[k] < 0) {
-      throw Error("{}: the program moves rotary axis {} but machine '{}' has none", program.file,
+    if (uses_rotary[k] && index_[k] < 0) {
+      throw Error("{}: the program moves rotary axis {} but machine '{}' has none", file,
                   static_cast<char>('A' + k), machine.Name());
     }
   }
@@ -48,72 +52,72 @@ Vector3d GcodeToolAxis::operator()(const GcodeMove& m) const {
   return machine_.Forward(q).axis;
 }
 
-GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
-                         const interp::VpopOptions& base, const GcodeOptions& options) {
-  GcodePlan plan;
-  if (program.moves.empty()) throw Error("{}: the program has no moves", program.file);
-  const GcodeToolAxis axis_of(program, machine);
-  double rapid = options.rapid_feed_mm_s;
-  if (!(rapid > 0.0)) {
+GcodeSegments::GcodeSegments(MoveSource next, std::string file,
+                             const std::array<bool, 3>& uses_rotary, const Machine& machine,
+                             const interp::VpopOptions& base, const GcodeOptions& options)
+    : next_(std::move(next)),
+      file_(std::move(file)),
+      machine_(machine),
+      axis_of_(file_, uses_rotary, machine),
+      base_(base),
+      options_(options),
+      rapid_feed_(options.rapid_feed_mm_s) {
+  if (!(rapid_feed_ > 0.0)) {
     double sum = 0.0;
     for (const Axis& a : machine.Axes()) {
       if (!a.rotary) sum += a.vmax * a.vmax;
     }
-    rapid = std::sqrt(sum);
+    rapid_feed_ = std::sqrt(sum);
   }
-  const auto where = [&program](const GcodeMove& m) {
-    return fmt::format("{}:{}", program.file, m.line);
-  };
+}
 
-  Vector3d tip = program.moves.front().to;
-  Vector3d axis = axis_of(program.moves.front());
-  std::vector<geometry::ChainMove> chain;
-  Vector3d chain_tip = tip, chain_axis = axis;
-  double chain_feed = 0.0;
-  int chain_first_line = 0;
-  bool chain_rapid = false;
+GcodeSegment GcodeSegments::Flush() {
+  GcodeSegment segment;
+  segment.rapid = chain_rapid_;
+  segment.options = base_;
+  segment.options.feed_mm_s = chain_feed_;
+  if (chain_rapid_ && chain_.size() == 1) {
+    // A lone rapid: the straight move it is.
+    segment.path = geometry::StraightMove(chain_tip_, chain_[0].tip, chain_axis_, chain_[0].axis);
+    segment.name = fmt::format("{}:{}: rapid", file_, chain_[0].line);
+    chain_.clear();
+    return segment;
+  }
+  geometry::CornerOptions corners = options_.corners;
+  corners.feed_mm_s = chain_feed_;
+  std::unique_ptr<geometry::G1Path> path;
+  try {
+    path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
+  } catch (const Error& e) {
+    throw Error("{}: {}", file_, e.what());
+  }
+  segment.corners = static_cast<int>(path->Corners().size());
+  segment.name = fmt::format("{}: lines {}-{}{}", file_, chain_first_line_, chain_.back().line,
+                             chain_rapid_ ? " (rapids)" : "");
+  segment.path = std::move(path);
+  chain_.clear();
+  return segment;
+}
 
-  const auto flush = [&] {
-    if (chain.empty()) return;
-    if (chain_rapid && chain.size() == 1) {
-      // A lone rapid: the straight move it is.
-      interp::VpopOptions o = base;
-      o.feed_mm_s = rapid;
-      std::unique_ptr<PathSource> path =
-          geometry::StraightMove(chain_tip, chain[0].tip, chain_axis, chain[0].axis);
-      plan.segments.push_back(
-          {path.get(), o, fmt::format("{}:{}: rapid", program.file, chain[0].line)});
-      plan.rapid.push_back(true);
-      plan.paths.push_back(std::move(path));
-      chain.clear();
-      return;
+std::optional<GcodeSegment> GcodeSegments::Next() {
+  const auto where = [this](const GcodeMove& m) { return fmt::format("{}:{}", file_, m.line); };
+  if (!started_) {
+    const std::optional<GcodeMove> first = next_();
+    if (!first) throw Error("{}: the program has no moves", file_);
+    tip_ = first->to;
+    axis_ = axis_of_(*first);
+    started_ = true;
+  }
+  while (!ended_) {
+    const std::optional<GcodeMove> read = next_();
+    if (!read) {
+      ended_ = true;
+      break;
     }
-    geometry::CornerOptions corners = options.corners;
-    corners.feed_mm_s = chain_feed;
-    std::unique_ptr<geometry::G1Path> path;
-    try {
-      path = std::make_unique<geometry::G1Path>(chain_tip, chain_axis, chain, machine, corners);
-    } catch (const Error& e) {
-      throw Error("{}: {}", program.file, e.what());
-    }
-    plan.corners += static_cast<int>(path->Corners().size());
-    if (!chain_rapid) plan.length_mm += *path->Length();
-    interp::VpopOptions o = base;
-    o.feed_mm_s = chain_feed;
-    plan.segments.push_back({path.get(), o,
-                             fmt::format("{}: lines {}-{}{}", program.file, chain_first_line,
-                                         chain.back().line, chain_rapid ? " (rapids)" : "")});
-    plan.rapid.push_back(chain_rapid);
-    plan.paths.push_back(std::move(path));
-    if (!chain_rapid) ++plan.chains;
-    chain.clear();
-  };
-
-  for (std::size_t k = 1; k < program.moves.size(); ++k) {
-    const GcodeMove& m = program.moves[k];
-    const Vector3d next_axis = axis_of(m);
-    const bool moves_tip = (m.to - tip).norm() > 1e-9;
-    const bool turns = (next_axis - axis).norm() > 1e-12;
+    const GcodeMove& m = *read;
+    const Vector3d next_axis = axis_of_(m);
+    const bool moves_tip = (m.to - tip_).norm() > 1e-9;
+    const bool turns = (next_axis - axis_).norm() > 1e-12;
     if (!moves_tip && m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw) {
       if (turns) {
         throw Error(
@@ -123,48 +127,79 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
       }
       continue;  // a repeated point
     }
-    {
-      // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids.
-      const bool is_rapid = m.kind == GcodeMove::Kind::kRapid;
-      const double feed = is_rapid ? rapid : std::min(m.feed_mm_min / 60.0, options.max_feed_mm_s);
-      if (is_rapid) ++plan.rapids;
-      geometry::ChainMove c;
-      c.kind = m.kind == GcodeMove::Kind::kLinear || is_rapid ? geometry::ChainMove::Kind::kLine
-                                                              : geometry::ChainMove::Kind::kArc;
-      c.tip = m.to;
-      c.axis = next_axis;
-      c.center = m.center;
-      c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
-      c.line = m.line;
-      bool joins = !chain.empty() && feed == chain_feed && is_rapid == chain_rapid &&
-                   (!is_rapid || options.blend_rapids);
-      if (joins) {
-        const geometry::ChainMove& prev = chain.back();
-        const Vector3d prev_from = chain.size() > 1 ? chain[chain.size() - 2].tip : chain_tip;
-        const Vector3d out = geometry::EndTangent(prev_from, prev);
-        const Vector3d in = geometry::StartTangent(tip, c);
-        const double angle = geometry::Angle(out, in);
-        const bool arc = prev.kind == geometry::ChainMove::Kind::kArc ||
-                         c.kind == geometry::ChainMove::Kind::kArc;
-        if (arc ? angle > options.tangent_rad : angle > std::numbers::pi - 1e-6) joins = false;
-      }
-      if (!joins) {
-        flush();
-        chain_tip = tip;
-        chain_axis = axis;
-        chain_feed = feed;
-        chain_first_line = m.line;
-        chain_rapid = is_rapid;
-      }
-      chain.push_back(c);
+    // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids.
+    const bool is_rapid = m.kind == GcodeMove::Kind::kRapid;
+    const double feed =
+        is_rapid ? rapid_feed_ : std::min(m.feed_mm_min / 60.0, options_.max_feed_mm_s);
+    if (is_rapid) ++rapids_;
+    geometry::ChainMove c;
+    c.kind = m.kind == GcodeMove::Kind::kLinear || is_rapid ? geometry::ChainMove::Kind::kLine
+                                                            : geometry::ChainMove::Kind::kArc;
+    c.tip = m.to;
+    c.axis = next_axis;
+    c.center = m.center;
+    c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
+    c.line = m.line;
+    bool joins = !chain_.empty() && feed == chain_feed_ && is_rapid == chain_rapid_ &&
+                 (!is_rapid || options_.blend_rapids);
+    if (joins) {
+      const geometry::ChainMove& prev = chain_.back();
+      const Vector3d prev_from = chain_.size() > 1 ? chain_[chain_.size() - 2].tip : chain_tip_;
+      const Vector3d out = geometry::EndTangent(prev_from, prev);
+      const Vector3d in = geometry::StartTangent(tip_, c);
+      const double angle = geometry::Angle(out, in);
+      const bool arc =
+          prev.kind == geometry::ChainMove::Kind::kArc || c.kind == geometry::ChainMove::Kind::kArc;
+      if (arc ? angle > options_.tangent_rad : angle > std::numbers::pi - 1e-6) joins = false;
     }
-    tip = m.to;
-    axis = next_axis;
+    std::optional<GcodeSegment> done;
+    if (!joins) {
+      if (!chain_.empty()) done = Flush();
+      chain_tip_ = tip_;
+      chain_axis_ = axis_;
+      chain_feed_ = feed;
+      chain_first_line_ = m.line;
+      chain_rapid_ = is_rapid;
+    }
+    chain_.push_back(c);
+    tip_ = m.to;
+    axis_ = next_axis;
+    if (done) {
+      ++segments_;
+      return done;
+    }
   }
-  flush();
-  if (plan.segments.empty()) {
-    throw Error("{}: the program never moves after its first positioning move", program.file);
+  if (!chain_.empty()) {
+    ++segments_;
+    return Flush();
   }
+  if (segments_ == 0) {
+    throw Error("{}: the program never moves after its first positioning move", file_);
+  }
+  return std::nullopt;
+}
+
+GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
+                         const interp::VpopOptions& base, const GcodeOptions& options) {
+  GcodePlan plan;
+  std::size_t k = 0;
+  GcodeSegments segments(
+      [&]() -> std::optional<GcodeMove> {
+        if (k == program.moves.size()) return std::nullopt;
+        return program.moves[k++];
+      },
+      program.file, program.uses_rotary, machine, base, options);
+  while (std::optional<GcodeSegment> s = segments.Next()) {
+    plan.corners += s->corners;
+    if (!s->rapid) {
+      plan.length_mm += *s->path->Length();
+      ++plan.chains;
+    }
+    plan.segments.push_back({s->path.get(), s->options, std::move(s->name)});
+    plan.rapid.push_back(s->rapid);
+    plan.paths.push_back(std::move(s->path));
+  }
+  plan.rapids = segments.Rapids();
   return plan;
 }
 

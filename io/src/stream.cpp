@@ -80,32 +80,81 @@ geometry::CornerOptions LinkCorners(const interp::VpopOptions& link) {
   return corners;
 }
 
-// Paths known up front (a line, a curve, a G-code program's contours and rapids).
+// Paths one after the other, as `next` builds them (a line, a curve, a G-code program's contours
+// and rapids), after a link from `from` to the first.
 class ListSegments final : public SegmentSource {
  public:
-  ListSegments(std::vector<StreamSegment> list, const Machine& machine,
-               std::optional<AxisVector> from, const interp::VpopOptions& link, double clearance)
-      : list_(std::move(list)),
+  using Producer = std::function<std::optional<StreamSegment>()>;
+  ListSegments(Producer next, const Machine& machine, std::optional<AxisVector> from,
+               const interp::VpopOptions& link, double clearance)
+      : next_(std::move(next)),
         linker_(machine, link, clearance, LinkCorners(link)),
         from_(std::move(from)) {}
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
-    if (next_ >= list_.size()) return std::nullopt;
-    if (next_ == 0 && from_ && !linked_) {
-      linked_ = true;
-      linker_.LinkTo(from_, *list_[0].path, NAN, "link to the start");
-      if (auto link = linker_.Pop()) return link;
+    if (!started_) {
+      started_ = true;
+      first_ = next_();
+      if (first_ && from_) {
+        linker_.LinkTo(from_, *first_->path, NAN, "link to the start");
+        if (auto link = linker_.Pop()) return link;
+      }
     }
     (void)at;
-    return list_[next_++];
+    if (first_) {
+      std::optional<StreamSegment> first;
+      first.swap(first_);
+      return first;
+    }
+    return next_();
   }
 
  private:
-  std::vector<StreamSegment> list_;
-  std::size_t next_ = 0;
+  Producer next_;
   Linker linker_;
   std::optional<AxisVector> from_;
-  bool linked_ = false;
+  bool started_ = false;
+  std::optional<StreamSegment> first_;
+};
+
+// A G-code program's segments, built as the stream reaches them: the machine holds one chain of
+// moves at a time, not the program. The program is read and its segments built once before, so
+// that a bad block or corner is reported before anything moves.
+class GcodeProducer {
+ public:
+  GcodeProducer(const Job& job, const Machine& machine) : file_(job.path.gcode_file) {
+    // In the order `dtis run` finds them: bad blocks, rotary words the machine lacks, corners.
+    std::array<bool, 3> uses_rotary{};
+    {
+      GcodeReader blocks(file_);
+      while (blocks.Next()) {
+      }
+      uses_rotary = blocks.UsesRotary();
+    }
+    const auto build = [&](GcodeReader& reader) {
+      return std::make_unique<GcodeSegments>([&reader] { return reader.Next(); }, file_,
+                                             uses_rotary, machine, job.vpop, job.path.gcode);
+    };
+    {
+      GcodeReader reader(file_);
+      const auto all = build(reader);
+      while (all->Next()) {
+      }
+    }
+    reader_ = std::make_unique<GcodeReader>(file_);
+    segments_ = build(*reader_);
+  }
+  std::optional<StreamSegment> operator()() {
+    std::optional<GcodeSegment> s = segments_->Next();
+    if (!s) return std::nullopt;
+    return StreamSegment{std::shared_ptr<const PathSource>(std::move(s->path)), s->options,
+                         std::move(s->name)};
+  }
+
+ private:
+  std::string file_;
+  std::unique_ptr<GcodeReader> reader_;
+  std::unique_ptr<GcodeSegments> segments_;
 };
 
 // A surface job: pass 1, the links from where it really ended to pass 2, pass 2, ...
@@ -154,18 +203,18 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
                 job.file);
   }
   if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from);
-  std::vector<StreamSegment> list;
+  ListSegments::Producer next;
   if (job.path.kind == PathSpec::Kind::kGcode) {
-    auto plan = std::make_shared<GcodePlan>(
-        BuildGcodePlan(ReadGcode(job.path.gcode_file), machine, job.vpop, job.path.gcode));
-    for (const auto& seg : plan->segments) {
-      // Each segment shares ownership of the whole plan (its paths).
-      list.push_back({std::shared_ptr<const PathSource>(plan, seg.path), seg.options, seg.name});
-    }
+    next = [producer = std::make_shared<GcodeProducer>(job, machine)] { return (*producer)(); };
   } else {
-    list.push_back({std::shared_ptr<const PathSource>(BuildPath(job)), job.vpop, "path"});
+    next = [segment = std::optional<StreamSegment>(StreamSegment{
+                std::shared_ptr<const PathSource>(BuildPath(job)), job.vpop, "path"})]() mutable {
+      std::optional<StreamSegment> s;
+      s.swap(segment);
+      return s;
+    };
   }
-  return std::make_unique<ListSegments>(std::move(list), machine, from, job.vpop, clearance_mm);
+  return std::make_unique<ListSegments>(std::move(next), machine, from, job.vpop, clearance_mm);
 }
 
 // ---- outputs

@@ -11,6 +11,9 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <iosfwd>
+#include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,7 +36,36 @@ struct GcodeProgram {
   std::array<bool, 3> uses_rotary{};  // A, B, C appear in the program
 };
 
-// Throws dtis::Error "<file>:<line>:<column>: ..." on the first bad block.
+// A program read one move at a time, in constant memory (a line and the modal state), for programs
+// too long to hold: Next() throws dtis::Error "<file>:<line>:<column>: ..." at a bad block.
+class GcodeReader {
+ public:
+  // Reads the file at `path` (throws when it cannot be opened).
+  explicit GcodeReader(const std::string& path);
+  // Reads `text`, which must outlive the reader; `source_name` names it in messages.
+  GcodeReader(std::string_view text, const std::string& source_name);
+  ~GcodeReader();
+  GcodeReader(const GcodeReader&) = delete;
+  GcodeReader& operator=(const GcodeReader&) = delete;
+
+  // The next move, or nothing at the end of the program (M2/M30 or the end of the text).
+  std::optional<GcodeMove> Next();
+  const std::string& File() const;
+  // A, B, C words seen so far.
+  const std::array<bool, 3>& UsesRotary() const;
+
+ private:
+  class Blocks;
+  std::unique_ptr<Blocks> blocks_;
+  std::unique_ptr<std::ifstream> in_;  // or:
+  std::string_view text_;
+  std::size_t offset_ = 0;
+  std::string line_text_;
+  int line_ = 0;
+  bool ended_ = false;
+};
+
+// The whole program. Throws dtis::Error "<file>:<line>:<column>: ..." on the first bad block.
 GcodeProgram ReadGcode(const std::string& path);
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name);
 

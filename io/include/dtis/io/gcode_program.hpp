@@ -12,7 +12,9 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +48,9 @@ std::array<int, 3> RotaryWordAxes(const Machine& machine);
 class GcodeToolAxis {
  public:
   GcodeToolAxis(const GcodeProgram& program, const Machine& machine);
+  // `uses_rotary`: which of A, B, C the program `file` writes.
+  GcodeToolAxis(const std::string& file, const std::array<bool, 3>& uses_rotary,
+                const Machine& machine);
   Eigen::Vector3d operator()(const GcodeMove& move) const;
 
  private:
@@ -59,6 +64,52 @@ struct GcodePlan {
   std::vector<bool> rapid;                       // per segment: rapids, not feed moves
   int chains = 0, rapids = 0, corners = 0;  // chains of feed moves; rapid blocks; corners smoothed
   double length_mm = 0.0;                   // tip path length of the feed moves
+};
+
+// One segment of a program: a chain of feed moves (or of rapids), smoothed, or a lone rapid.
+struct GcodeSegment {
+  std::unique_ptr<PathSource> path;
+  interp::VpopOptions options;
+  std::string name;  // "<file>: lines 12-40", "<file>:41: rapid"
+  bool rapid = false;
+  int corners = 0;  // smoothed
+};
+
+// A program's segments one at a time, each built from the moves it takes when it is asked for:
+// what BuildGcodePlan returns at once, for a program streamed to a machine, which then holds one
+// chain of moves at a time instead of the whole program. Segments and messages are
+// BuildGcodePlan's.
+class GcodeSegments {
+ public:
+  // Yields the program's moves in order, nothing at the end.
+  using MoveSource = std::function<std::optional<GcodeMove>()>;
+  // `uses_rotary`: the A, B, C words of the whole program (checked against the machine here).
+  GcodeSegments(MoveSource next, std::string file, const std::array<bool, 3>& uses_rotary,
+                const Machine& machine, const interp::VpopOptions& base,
+                const GcodeOptions& options);
+  // Nothing after the last segment. Throws dtis::Error "<file>:<line>: ..." as BuildGcodePlan.
+  std::optional<GcodeSegment> Next();
+  int Rapids() const { return rapids_; }  // rapid blocks read so far
+
+ private:
+  GcodeSegment Flush();
+
+  MoveSource next_;
+  std::string file_;
+  const Machine& machine_;
+  GcodeToolAxis axis_of_;
+  interp::VpopOptions base_;
+  GcodeOptions options_;
+  double rapid_feed_ = 0.0;
+  bool started_ = false, ended_ = false;
+  Eigen::Vector3d tip_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::UnitZ();
+  // The chain being gathered: its moves, where it starts, its feed.
+  std::vector<geometry::ChainMove> chain_;
+  Eigen::Vector3d chain_tip_ = Eigen::Vector3d::Zero(), chain_axis_ = Eigen::Vector3d::UnitZ();
+  double chain_feed_ = 0.0;
+  int chain_first_line_ = 0;
+  bool chain_rapid_ = false;
+  int rapids_ = 0, segments_ = 0;
 };
 
 // `base` carries the period and the tangential limits; each segment gets its own feed. Throws
