@@ -7,6 +7,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "dtis/interp/program.hpp"
 #include "dtis/interp/vpop.hpp"
@@ -165,6 +166,24 @@ void GcodePlan100k(benchmark::State& state) {
   GcodePlanOn(state, dtis::io::ParseGcode(text, "raster.ngc"), job);
 }
 BENCHMARK(GcodePlan100k)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// A program whose every vertex is a corner, as CAM exports a curved contour: 2 000 blocks of 1 mm,
+// each turning 1 degree (a polygon of a 57 mm circle, 5.6 turns), F 3 m/min, lock.toml's machine.
+// Each corner turns within 0.25 mm, so the axis jerk limits the feed at nearly every period (the
+// circle itself would allow F): the planner backs off ~15 times per block.
+void GcodePlanPolygon(benchmark::State& state) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
+  std::string text = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 F3000\n";
+  double x = 0.0, y = 0.0;
+  for (int k = 1; k <= 2000; ++k) {
+    const double heading = k * std::numbers::pi / 180.0;
+    x += std::cos(heading);
+    y += std::sin(heading);
+    text += fmt::format("X{:.4f} Y{:.4f}\n", x, y);
+  }
+  GcodePlanOn(state, dtis::io::ParseGcode(text, "polygon.ngc"), job);
+}
+BENCHMARK(GcodePlanPolygon)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // Loading a million-block program: reading it and smoothing its corners (what happens before the
 // first setpoint): rows of 1 000 blocks of 0.1 mm along a gentle wave in Z, 1 mm apart (Z written
