@@ -37,22 +37,30 @@ peak_kb() {  # job: streams it, prints the peak resident memory in kB
   wait "$pid"
   echo "$peak"
 }
-for rows in 6 60; do
-  raster "$rows" "$out/raster$rows.ngc"
-  cat >"$out/raster$rows.toml" <<EOF
-machine = "$root/samples/machines/mikron_ucp710_xyz.toml"
-period_ms = 1.0
+gcode_job() {  # name, machine file, period in ms: $out/name.toml, for $out/name.ngc
+  cat >"$out/$1.toml" <<EOF
+machine = "$2"
+period_ms = $3
 [path]
 kind = "gcode"
-file = "raster$rows.ngc"
+file = "$1.ngc"
 contour_tol_mm = 0.02
 EOF
+}
+flat() {  # short job, long job, what each is: their peaks differ by less than 8 MB
+  local short long
+  short=$(peak_kb "$out/$1.toml")
+  long=$(peak_kb "$out/$2.toml")
+  echo "stream memory: peak $short kB for $3, $long kB for $4"
+  test "$short" -gt 0
+  test "$((long - short))" -lt 8192
+}
+
+for rows in 6 60; do
+  raster "$rows" "$out/raster$rows.ngc"
+  gcode_job "raster$rows" "$root/samples/machines/mikron_ucp710_xyz.toml" 1.0
 done
-short=$(peak_kb "$out/raster6.toml")
-long=$(peak_kb "$out/raster60.toml")
-echo "stream memory: peak $short kB for ~1 min of motion, $long kB for ~10 min"
-test "$short" -gt 0
-test "$((long - short))" -lt 8192
+flat raster6 raster60 "~1 min of motion" "~10 min"
 
 sed -e 's/^velocity = .*/velocity = 60/' -e 's/^acceleration = .*/acceleration = 20/' \
   -e 's/^jerk = .*/jerk = 500/' "$root/samples/machines/mikron_ucp710_xyz.toml" >"$out/fast.toml"
@@ -65,17 +73,6 @@ for blocks in 5000 50000; do
     done
     echo "M2"
   } >"$out/blocks$blocks.ngc"
-  cat >"$out/blocks$blocks.toml" <<EOF
-machine = "fast.toml"
-period_ms = 10.0
-[path]
-kind = "gcode"
-file = "blocks$blocks.ngc"
-contour_tol_mm = 0.02
-EOF
+  gcode_job "blocks$blocks" fast.toml 10.0
 done
-short=$(peak_kb "$out/blocks5000.toml")
-long=$(peak_kb "$out/blocks50000.toml")
-echo "stream memory: peak $short kB for 5 000 blocks, $long kB for 50 000"
-test "$short" -gt 0
-test "$((long - short))" -lt 8192
+flat blocks5000 blocks50000 "5 000 blocks" "50 000"

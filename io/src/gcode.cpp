@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <optional>
+#include <utility>
 
 #include "dtis/core/error.hpp"
 
@@ -45,7 +46,8 @@ class GcodeReader::Blocks {
     if (!Words(text, &words_)) return true;
     return Block(words_);
   }
-  std::optional<GcodeMove>& Move() { return move_; }
+  // The move of the last block, if it made one (once).
+  std::optional<GcodeMove> TakeMove() { return std::exchange(move_, std::nullopt); }
   const std::string& File() const { return file_; }
   const std::array<bool, 3>& UsesRotary() const { return uses_rotary_; }
 
@@ -305,11 +307,7 @@ std::optional<GcodeMove> GcodeReader::Next() {
     }
     if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
     if (!blocks_->Line(l, ++line_)) ended_ = true;
-    if (auto& move = blocks_->Move()) {
-      std::optional<GcodeMove> out;
-      out.swap(move);
-      return out;
-    }
+    if (std::optional<GcodeMove> move = blocks_->TakeMove()) return move;
   }
   ended_ = true;
   return std::nullopt;

@@ -80,21 +80,20 @@ GcodeSegment GcodeSegments::Flush() {
     // A lone rapid: the straight move it is.
     segment.path = geometry::StraightMove(chain_tip_, chain_[0].tip, chain_axis_, chain_[0].axis);
     segment.name = fmt::format("{}:{}: rapid", file_, chain_[0].line);
-    chain_.clear();
-    return segment;
+  } else {
+    geometry::CornerOptions corners = options_.corners;
+    corners.feed_mm_s = chain_feed_;
+    std::unique_ptr<geometry::G1Path> path;
+    try {
+      path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
+    } catch (const Error& e) {
+      throw Error("{}: {}", file_, e.what());
+    }
+    segment.corners = static_cast<int>(path->Corners().size());
+    segment.name = fmt::format("{}: lines {}-{}{}", file_, chain_first_line_, chain_.back().line,
+                               chain_rapid_ ? " (rapids)" : "");
+    segment.path = std::move(path);
   }
-  geometry::CornerOptions corners = options_.corners;
-  corners.feed_mm_s = chain_feed_;
-  std::unique_ptr<geometry::G1Path> path;
-  try {
-    path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
-  } catch (const Error& e) {
-    throw Error("{}: {}", file_, e.what());
-  }
-  segment.corners = static_cast<int>(path->Corners().size());
-  segment.name = fmt::format("{}: lines {}-{}{}", file_, chain_first_line_, chain_.back().line,
-                             chain_rapid_ ? " (rapids)" : "");
-  segment.path = std::move(path);
   chain_.clear();
   return segment;
 }

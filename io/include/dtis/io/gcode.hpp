@@ -57,7 +57,7 @@ class GcodeReader {
  private:
   class Blocks;
   std::unique_ptr<Blocks> blocks_;
-  std::unique_ptr<std::ifstream> in_;  // or:
+  std::unique_ptr<std::ifstream> in_;  // the file; without one, text_ from offset_
   std::string_view text_;
   std::size_t offset_ = 0;
   std::string line_text_;
