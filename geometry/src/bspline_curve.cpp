@@ -12,7 +12,7 @@ using Table = std::array<std::array<double, kMaxCurveDegree + 1>, kMaxCurveDegre
 
 // Non-vanishing basis functions at u in span (A2.2).
 void BasisFunctions(const std::vector<double>& U, int span, double u, int p, double* N) {
-  std::array<double, kMaxCurveDegree + 1> left{}, right{};
+  std::array<double, kMaxCurveDegree + 1> left, right;
   N[0] = 1.0;
   for (int j = 1; j <= p; ++j) {
     left[j] = u - U[static_cast<std::size_t>(span + 1 - j)];
@@ -28,9 +28,12 @@ void BasisFunctions(const std::vector<double>& U, int span, double u, int p, dou
 }
 
 // Basis functions and their derivatives up to n at u in span (A2.3): ders[k][j].
+//
+// Only the entries [0..p][0..p] of ndu and [0..n][0..p] of ders are written and read, so neither
+// table is cleared: zeroing their 2 x 2 KB cost more than the recurrences themselves at degree 3.
 void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, int n, Table& ders) {
-  Table ndu{};
-  std::array<double, kMaxCurveDegree + 1> left{}, right{};
+  Table ndu;
+  std::array<double, kMaxCurveDegree + 1> left, right;
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
     left[j] = u - U[static_cast<std::size_t>(span + 1 - j)];
@@ -45,7 +48,7 @@ void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, i
     ndu[j][j] = saved;
   }
   for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
-  std::array<std::array<double, kMaxCurveDegree + 1>, 2> a{};
+  std::array<std::array<double, kMaxCurveDegree + 1>, 2> a;
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
     a[0][0] = 1.0;
@@ -188,7 +191,7 @@ int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double*
 Eigen::Vector3d BSplineCurve::Point(double u) const {
   u = std::clamp(u, FirstParameter(), LastParameter());
   const int span = FindSpan(u);
-  std::array<double, kMaxCurveDegree + 1> N{};
+  std::array<double, kMaxCurveDegree + 1> N;
   BasisFunctions(knots_, span, u, degree_, N.data());
   const std::size_t first = static_cast<std::size_t>(span - degree_);
   if (weights_.empty()) {
@@ -206,7 +209,7 @@ void BSplineCurve::Derivatives(double u, int order, Eigen::Vector3d* d, bool fro
   u = std::clamp(u, FirstParameter(), LastParameter());
   const int span = FindSpan(u, from_left);
   const int n = std::min(order, degree_);
-  Table ders{};
+  Table ders;
   BasisDerivatives(knots_, span, u, degree_, n, ders);
   const std::size_t first = static_cast<std::size_t>(span - degree_);
   if (weights_.empty()) {
