@@ -456,14 +456,17 @@ Effective Planner::Available(const History& h, const Box& box, const Interval& t
   // saturates an axis one side of its interval is almost empty, and a law planned with that
   // sliver would crawl. The laws only propose; the exact search and the back-off enforce the
   // limits.
-  double nominal = INFINITY, nominal_acceleration = INFINITY;
+  // The nominal values include the tangential limits: a floor above them would plan laws that
+  // the tangential interval cannot follow (they overshoot the feed cap, or brake so hard that the
+  // release comes too late to stop), and the back-off would find no step to brake from.
+  double nominal = o_.tangential_jerk_mm_s3,
+         nominal_acceleration = o_.tangential_acceleration_mm_s2;
   for (int i = 0; i < n_; ++i) {
     if (std::abs(g[i]) < 1e-9) continue;
     nominal = std::min(nominal, limits_[i].j / std::abs(g[i]));
     nominal_acceleration = std::min(nominal_acceleration, limits_[i].a / std::abs(g[i]));
   }
-  if (!std::isfinite(nominal))
-    nominal = std::isfinite(o_.tangential_jerk_mm_s3) ? o_.tangential_jerk_mm_s3 : 1e15;
+  if (!std::isfinite(nominal)) nominal = 1e15;
   e.jerk = std::clamp(std::min(up, down), 0.25 * nominal, nominal);
   // The same floor for the acceleration, whose centripetal part can take a whole axis limit.
   if (std::isfinite(nominal_acceleration)) {
