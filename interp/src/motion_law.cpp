@@ -93,7 +93,8 @@ constexpr long kMinJump = 8;
 }  // namespace
 
 // StopDistanceBySimulation, with the long phases summed in closed form instead of stepped: the
-// ramp (a falls by jerk dt per period), the hold at -acceleration, and the release, which follows
+// ramp (a falls by jerk dt per period), the rise (a state braked harder than its release needs
+// lets go by jerk dt per period), the hold at -acceleration, and the release, which follows
 // its own plan (accelerations -b, -b + j dt, ... as MaxAccelerationUnderCap planned them) because
 // that plan re-aims to itself period after period. Each phase's length is found by bisection on
 // the law's own choice, so the result is the simulation's up to rounding.
@@ -126,6 +127,30 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
         distance +=
             dt *
             (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 - step * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
+        v = v_at(k);
+        a = a_at(k);
+        periods += static_cast<int>(k);
+        continue;
+      }
+    } else if (next == a + step && a + step < 0.0) {
+      // Rise: braked harder than the release plan needs, the law lets go at the full jerk until
+      // it meets the plan (or v reaches zero first: the state reverses). a_m = a + m step,
+      // v_m = v + dt (m a + step m (m + 1) / 2).
+      const auto a_at = [&](long m) { return a + static_cast<double>(m) * step; };
+      const auto v_at = [&](long m) {
+        const double mm = static_cast<double>(m);
+        return v + dt * (mm * a + step * mm * (mm + 1.0) / 2.0);
+      };
+      const auto rises = [&](long m) {  // period m chooses a_{m-1} + step
+        return std::max(-acceleration, release(v_at(m - 1))) >= a_at(m) && v_at(m) > tiny;
+      };
+      const long most = static_cast<long>(-a / step);
+      if (most >= kMinJump && rises(kMinJump)) {
+        const long k = LastTrue(most, rises);
+        const double kk = static_cast<double>(k);
+        distance +=
+            dt *
+            (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 + step * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
         v = v_at(k);
         a = a_at(k);
         periods += static_cast<int>(k);
