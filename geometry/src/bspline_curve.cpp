@@ -10,8 +10,12 @@ namespace {
 
 using Table = std::array<std::array<double, kMaxCurveDegree + 1>, kMaxCurveDegree + 1>;
 
-// Non-vanishing basis functions at u in span (A2.2).
-void BasisFunctions(const std::vector<double>& U, int span, double u, int p, double* N) {
+// Non-vanishing basis functions at u in span (A2.2). kDegree >= 0 fixes the degree at compile
+// time, so that the loops unroll (the same operations in the same order: the same bits).
+template <int kDegree>
+void BasisFunctionsOfDegree(const std::vector<double>& U, int span, double u, int degree,
+                            double* N) {
+  const int p = kDegree >= 0 ? kDegree : degree;
   std::array<double, kMaxCurveDegree + 1> left, right;
   N[0] = 1.0;
   for (int j = 1; j <= p; ++j) {
@@ -27,11 +31,25 @@ void BasisFunctions(const std::vector<double>& U, int span, double u, int p, dou
   }
 }
 
+void BasisFunctions(const std::vector<double>& U, int span, double u, int p, double* N) {
+  switch (p) {
+    case 2:
+      return BasisFunctionsOfDegree<2>(U, span, u, p, N);
+    case 3:
+      return BasisFunctionsOfDegree<3>(U, span, u, p, N);
+    default:
+      return BasisFunctionsOfDegree<-1>(U, span, u, p, N);
+  }
+}
+
 // Basis functions and their derivatives up to n at u in span (A2.3): ders[k][j].
 //
 // Only the entries [0..p][0..p] of ndu and [0..n][0..p] of ders are written and read, so neither
 // table is cleared: zeroing their 2 x 2 KB cost more than the recurrences themselves at degree 3.
-void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, int n, Table& ders) {
+template <int kDegree>
+void BasisDerivativesOfDegree(const std::vector<double>& U, int span, double u, int degree, int n,
+                              Table& ders) {
+  const int p = kDegree >= 0 ? kDegree : degree;
   Table ndu;
   std::array<double, kMaxCurveDegree + 1> left, right;
   ndu[0][0] = 1.0;
@@ -77,6 +95,17 @@ void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, i
   for (int k = 1; k <= n; ++k) {
     for (int j = 0; j <= p; ++j) ders[k][j] *= factor;
     factor *= p - k;
+  }
+}
+
+void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, int n, Table& ders) {
+  switch (p) {
+    case 2:
+      return BasisDerivativesOfDegree<2>(U, span, u, p, n, ders);
+    case 3:
+      return BasisDerivativesOfDegree<3>(U, span, u, p, n, ders);
+    default:
+      return BasisDerivativesOfDegree<-1>(U, span, u, p, n, ders);
   }
 }
 
