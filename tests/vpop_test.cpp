@@ -55,8 +55,8 @@ TEST(Vpop, StraightLineMatchesTheJerkLimitedClosedForm) {
 
 // Tangential limits far below the axis ones: the look-ahead and brake laws must plan with them, not
 // with the floor they take from the axis limits (a quarter of them). They once planned with the
-// floor: the tangential jerk case then never finished (the back-off found no step to brake from
-// and crept forward a period at a time), the acceleration one backed off 415 times.
+// floor: the tangential jerk case did not end within a minute (the back-off found no step to brake
+// from and crept forward a period or two at a time), the acceleration one backed off 415 times.
 TEST(Vpop, TangentialLimitsBelowTheAxisLimitsAreFollowedWithoutBackOff) {
   const auto machine = Cartesian(500.0, 2500.0, 5000.0);
   const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
