@@ -161,7 +161,8 @@ TEST(Vpop, DISABLED_SteadyFeedOnACircleIsTheAxisClosedForm) {
 // than 60 degrees per leg (no hairpins). CI's seed (20261138 = --seed=20261121, + 17) reaches, in
 // case 24, a rest 1.37e-4 mm before the end of a 12.636 mm curve under a tangential jerk limit,
 // from where the end look-ahead's first step could not be braked before the end: the planner used
-// to fail there ("no step forward ... even from rest"); it now halves the step (kMaxStuckRetries).
+// to fail there ("no step forward ... even from rest"). The laws' jerk floor above the tangential
+// limit was the cause; with it fixed the case plans through in one go.
 
 void RandomCurvesPassTheVerifier(bool smooth, long cases, unsigned long seed, long only = -1) {
   std::mt19937_64 rng(seed);
