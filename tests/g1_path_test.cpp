@@ -369,6 +369,32 @@ TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
 // Blended (the default), a retract-traverse-plunge link is one chain: the machine does not stop at
 // the G0 vertices, and the smoothed corners stay within the contour tolerance. With blend_rapids
 // off, three straight moves, each from rest to rest.
+// A 10 ms period on 0.2 mm blocks: the first step from rest at the jerk limit is 0.5 mm, and a
+// tight corner lay 0.8 mm ahead; that step could not be carried on through the corner and the
+// planner came back to the same rest again and again ("no step forward ... even from rest").
+// The step from a rest it came back to is halved until the motion gets through.
+TEST(GcodeProgram, LongPeriodBeforeATightCornerDoesNotGetStuck) {
+  const auto machine = Cartesian(1000, 20000, 5e5);
+  std::string text = "G21 G90\nG0 X0 Y0 Z0\nG1 X0.2 F6000\n";
+  for (int k = 2; k <= 40; ++k) {
+    const int row = k / 10, i = k % 10;
+    text += fmt::format("G1 X{:.1f} Y{:.1f}\n", (row % 2 == 0 ? i : 10 - i) * 0.2, row * 0.5);
+  }
+  const io::GcodeProgram p = io::ParseGcode(text, "raster.ngc");
+  interp::VpopOptions o;
+  o.period_s = 0.01;
+  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, {});
+  ASSERT_EQ(plan.segments.size(), 1u);
+  test::Collect sink;
+  interp::VpopOptions po = plan.segments[0].options;
+  const auto r = interp::PlanVpop(*plan.paths[0], *machine, po, sink);
+  io::TableSink table(*machine, o.period_s);
+  for (const auto& sp : sink.points) table.Accept(sp);
+  const auto report = interp::Verify(table.Table(), *machine);
+  EXPECT_TRUE(report.Passed()) << report.worst;
+  EXPECT_NEAR(r.end_s, *plan.paths[0]->Length(), 1e-9);
+}
+
 TEST(GcodeProgram, BlendedRapidsDoNotStopAtTheirVertices) {
   const auto machine = Cartesian(500, 5000, 5e6);
   const io::GcodeProgram p =

@@ -130,9 +130,9 @@ struct Effective {
 // fall strictly inside the axis intervals instead of on their faces (where rounding decides).
 constexpr double kLawMargin = 1.0 - 1e-7;
 
-// Times in a row the planner may come back to rest at the same arc length before it reports that
-// no step forward is possible.
-constexpr int kMaxStuckRetries = 3;
+// Times in a row the planner may come back to rest at the same arc length, its step from there
+// halved each time (2^-30 of the first), before it reports that no step forward is possible.
+constexpr int kMaxStuckRetries = 30;
 
 // A path walked backwards from arc length `end` (its s is end - s of the path): the look-ahead
 // plans away from a slow point on it with the same planner, so that braking for the point is the
@@ -305,7 +305,7 @@ class Planner {
   long stop_from_ = -1;
   VpopSummary summary_;
   // Where the planner last came back to rest with no step forward kept, and how many times in a
-  // row (BackOff).
+  // row: each time, the next greedy step from there is halved (Produce).
   double last_stuck_s_ = -1.0;
   // Per slow point: not planned yet, planned (ascending (s, feed)), or failed (empty).
   std::vector<std::optional<std::vector<std::pair<double, double>>>> curves_;
@@ -796,6 +796,15 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
     if (soft < target) {
       target = std::max(soft, t.lo);
       by = soft > t.lo ? soft_by : t.lo_by;
+    }
+    if (AtRest(h) && h.p0->s == last_stuck_s_) {
+      // Back at rest where the last step from rest could not be carried on: the look-ahead laws
+      // overreach where one period is long against the path (a 10 ms period, 0.2 mm blocks and
+      // a tight corner 0.8 mm ahead: the first step from rest, 0.5 mm at the jerk limit, takes
+      // the motion into the corner too fast). Step by half as much each time, down to a step
+      // from which the motion gets through.
+      target = std::max(t.lo, h.p0->s + std::ldexp(target - h.p0->s, -(stuck_count_ + 1)));
+      by = {Limiter::kBackOff, -1};
     }
   } else {
     const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
