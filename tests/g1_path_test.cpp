@@ -282,6 +282,206 @@ TEST(G1Path, CornerMapsBuiltOnDemandGiveTheSamePosesInAnyOrder) {
   EXPECT_EQ(poses(order), forward);
 }
 
+// A random walk of `blocks` G1 blocks, from 0.05 to 3 mm long, turning by up to 150 degrees: fine
+// stretches where the slow points crowd (and are thinned), long ones where they stand alone.
+std::vector<geometry::ChainMove> RandomWalk(int blocks, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<geometry::ChainMove> moves;
+  Vector3d at(0, 0, 0);
+  double heading = 0.0;
+  for (int k = 0; k < blocks; ++k) {
+    const bool fine = (k / 200) % 2 == 0;
+    const double length = fine ? 0.05 + 0.3 * unit(rng) : 0.5 + 2.5 * unit(rng);
+    heading += (unit(rng) - 0.5) * (fine ? 0.3 : 5.2);
+    at += length * Vector3d(std::cos(heading), std::sin(heading), 0.02 * (unit(rng) - 0.5));
+    geometry::ChainMove m;
+    m.tip = at;
+    m.line = k + 2;
+    moves.push_back(m);
+  }
+  return moves;
+}
+
+// The same chain built whole and through a window: `first` moves given, the rest read one by one.
+geometry::G1Path WindowedChain(const Vector3d& start_tip, const Vector3d& start_axis,
+                               const std::vector<geometry::ChainMove>& moves,
+                               const Machine& machine, const geometry::CornerOptions& o,
+                               std::size_t first, bool five_axis, double keep_behind_mm = 200.0) {
+  geometry::G1Path::Window w;
+  w.first.assign(moves.begin(), moves.begin() + static_cast<std::ptrdiff_t>(first));
+  w.more = [&moves, next = first]() mutable -> std::optional<geometry::ChainMove> {
+    if (next == moves.size()) return std::nullopt;
+    return moves[next++];
+  };
+  w.five_axis = five_axis;
+  w.keep_behind_mm = keep_behind_mm;
+  return geometry::G1Path(start_tip, start_axis, std::move(w), machine, o);
+}
+
+// Walks a windowed chain as a planner does (reach ahead, release behind) and compares every pose
+// and every slow point with the chain built whole, bit for bit; then plans both with a short
+// commit horizon (so that the planner releases as it goes) and compares the setpoints.
+void ExpectWindowedIsWhole(const geometry::G1Path& whole, const geometry::G1Path& windowed) {
+  ASSERT_FALSE(windowed.Length());  // not known before the chain is built to its end
+  const double length = *whole.Length();
+  std::vector<SlowPoint> slow;
+  int hint_a = 0, hint_b = 0;
+  std::size_t compared = 0;
+  for (double s = 0.0; s < length + 1.0; s += 0.013) {
+    windowed.Reach(s + 25.0);
+    for (const SlowPoint& p : windowed.SlowPoints()) {
+      if (p.s < s + 25.0 && (slow.empty() || p.s > slow.back().s)) slow.push_back(p);
+    }
+    const PathSample a = whole.At({.piece = hint_a}, s);
+    const PathSample b = windowed.At({.piece = hint_b}, s);
+    hint_a = a.state.piece, hint_b = b.state.piece;
+    ASSERT_EQ(a.status, b.status) << "s = " << s;
+    ASSERT_EQ(a.pose.tip, b.pose.tip) << "s = " << s;
+    ASSERT_EQ(a.pose.axis, b.pose.axis) << "s = " << s;
+    ++compared;
+    windowed.Release(s - 5.0);
+  }
+  EXPECT_GT(compared, 1000u);
+  ASSERT_TRUE(windowed.Length());
+  EXPECT_EQ(*windowed.Length(), length);
+  EXPECT_EQ(windowed.CornersBuilt(), whole.Corners().size());
+  EXPECT_LT(windowed.Corners().size(), whole.Corners().size());  // it was dropped behind
+  const auto all = whole.SlowPoints();
+  ASSERT_EQ(slow.size(), all.size());
+  for (std::size_t k = 0; k < slow.size(); ++k) {
+    EXPECT_EQ(slow[k].s, all[k].s);
+    EXPECT_EQ(slow[k].feed_mm_s, all[k].feed_mm_s);
+  }
+}
+
+// `dropped`: the chain is long enough against its keep_behind_mm for the planner's releases to
+// drop some of it (it drops in batches of more than 64 corners).
+void ExpectSamePlan(const geometry::G1Path& whole, const geometry::G1Path& windowed,
+                    const Machine& machine, double feed_mm_s, bool dropped) {
+  interp::VpopOptions o;
+  o.feed_mm_s = feed_mm_s;
+  o.commit_horizon = 128;
+  test::Collect a, b;
+  const auto ra = interp::PlanVpop(whole, machine, o, a);
+  const auto rb = interp::PlanVpop(windowed, machine, o, b);
+  EXPECT_EQ(ra.motion_time_s, rb.motion_time_s);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  for (std::size_t k = 0; k < a.points.size(); ++k) {
+    ASSERT_EQ(a.points[k].q, b.points[k].q) << "setpoint " << k;
+  }
+  if (dropped) EXPECT_LT(windowed.Corners().size(), windowed.CornersBuilt());
+}
+
+TEST(G1Path, WindowedChainIsTheWholeChainBitForBit) {
+  const auto machine = Cartesian(500, 2500, 5000);
+  const auto moves = RandomWalk(1500, 11);
+  geometry::CornerOptions o;
+  o.feed_mm_s = 100.0;
+  const geometry::G1Path whole({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o);
+  ASSERT_GT(whole.Corners().size(), 1000u);
+  // The thinning, against the rule computed here from the corners: taken slowest first (the
+  // earlier corner at equal feed), a slow point stays unless a kept one is nearer than the
+  // braking distance F sqrt(F / J).
+  const double window = o.feed_mm_s * std::sqrt(o.feed_mm_s / 5000.0);
+  std::vector<std::pair<double, double>> candidates;  // feed, s
+  for (const auto& c : whole.Corners()) {
+    if (c.reachable_feed_mm_s < o.feed_mm_s) {
+      candidates.push_back({c.reachable_feed_mm_s, 0.5 * (c.s0 + c.s1)});
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::map<double, double> kept;
+  for (const auto& [feed, s] : candidates) {
+    bool near = false;
+    for (const auto& [t, f] : kept) near = near || std::abs(t - s) < window;
+    if (!near) kept.emplace(s, feed);
+  }
+  ASSERT_EQ(whole.SlowPoints().size(), kept.size());
+  EXPECT_LT(kept.size(), candidates.size() / 4);  // the fine stretches crowd
+  std::size_t k = 0;
+  for (const auto& [s, feed] : kept) {
+    EXPECT_EQ(whole.SlowPoints()[k].s, s);
+    EXPECT_EQ(whole.SlowPoints()[k].feed_mm_s, feed);
+    ++k;
+  }
+  for (const std::size_t first : {std::size_t{1}, std::size_t{40}}) {
+    SCOPED_TRACE(fmt::format("{} moves given first", first));
+    const auto windowed =
+        WindowedChain({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o, first, false);
+    ExpectWindowedIsWhole(whole, windowed);
+  }
+  // Planned: a shorter chain, kept 30 mm behind the planner (more than its backward look-ahead
+  // walks: some 18 mm to accelerate to F from rest, and the horizon).
+  const auto some = RandomWalk(250, 12);
+  const geometry::G1Path short_whole({0, 0, 0}, Vector3d::UnitZ(), some, *machine, o);
+  const auto planned =
+      WindowedChain({0, 0, 0}, Vector3d::UnitZ(), some, *machine, o, 10, false, 30.0);
+  ExpectSamePlan(short_whole, planned, *machine, o.feed_mm_s, true);
+}
+
+TEST(G1Path, WindowedFiveAxisChainIsTheWholeChainBitForBit) {
+  const FiveAxisCorner corner;
+  const Machine& machine = *corner.machine;
+  std::vector<geometry::ChainMove> moves;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  double a = 15.0, c = 0.0, heading = 0.0;
+  Vector3d at(0, 0, 0);
+  for (int k = 0; k < 400; ++k) {
+    heading += (unit(rng) - 0.5) * 1.2;
+    at += (0.5 + 2.0 * unit(rng)) * Vector3d(std::cos(heading), std::sin(heading), 0.0);
+    a = std::clamp(a + (unit(rng) - 0.5) * 1.0, 5.0, 25.0);
+    c += (unit(rng) - 0.3) * 3.0;
+    AxisVector q = AxisVector::Zero(5);
+    q[3] = a * std::numbers::pi / 180.0;
+    q[4] = c * std::numbers::pi / 180.0;
+    geometry::ChainMove m;
+    m.tip = at;
+    m.axis = machine.Forward(q).axis;
+    m.line = k + 2;
+    moves.push_back(m);
+  }
+  geometry::CornerOptions o;
+  o.feed_mm_s = 50.0;
+  const geometry::G1Path whole({0, 0, 0}, corner.start_axis, moves, machine, o);
+  ASSERT_TRUE(whole.FiveAxis());
+  ASSERT_GT(whole.SlowPoints().size(), 10u);
+  const auto windowed =
+      WindowedChain({0, 0, 0}, corner.start_axis, moves, machine, o, 3, true, 20.0);
+  ExpectWindowedIsWhole(whole, windowed);
+  const std::vector<geometry::ChainMove> some(moves.begin(), moves.begin() + 40);
+  const geometry::G1Path short_whole({0, 0, 0}, corner.start_axis, some, machine, o);
+  const auto planned = WindowedChain({0, 0, 0}, corner.start_axis, some, machine, o, 3, true, 30.0);
+  ExpectSamePlan(short_whole, planned, machine, o.feed_mm_s, false);
+}
+
+// A windowed chain drops what lies behind the planner; asking for it again is an error, not a
+// wrong pose. Errors in the moves come when the chain is built that far, Check builds it all.
+TEST(G1Path, WindowedChainSaysWhatItNoLongerHoldsAndChecksItsMoves) {
+  const auto machine = Cartesian(500, 2500, 5000);
+  const auto moves = RandomWalk(600, 3);
+  geometry::CornerOptions o;
+  o.feed_mm_s = 100.0;
+  const auto windowed =
+      WindowedChain({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o, 1, false, 10.0);
+  windowed.Reach(200.0);
+  windowed.Release(150.0);
+  EXPECT_NO_THROW(windowed.At({}, 141.0));
+  test::ExpectError([&] { windowed.At({}, 20.0); },
+                    "arc length 20 mm lies behind the part of the chain still held");
+  auto bad = moves;
+  bad[450].tip = bad[448].tip;  // turns back at 449
+  const auto checked =
+      WindowedChain({0, 0, 0}, Vector3d::UnitZ(), bad, *machine, o, 1, false, 10.0);
+  windowed.Check();
+  EXPECT_EQ(*windowed.Length(),
+            *geometry::G1Path({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o).Length());
+  test::ExpectError([&] { checked.Check(); },
+                    fmt::format("line {}: the path turns back on itself", bad[450].line));
+}
+
 // Corners are built in parallel; the error is the first bad corner in program order.
 TEST(G1Path, FirstBadCornerInProgramOrderIsReported) {
   const auto machine = Cartesian(500, 2500, 5e4);
@@ -510,6 +710,64 @@ TEST(GcodeProgram, SegmentsAreBuiltOneChainAtATime) {
     EXPECT_EQ(s->options.feed_mm_s, plan.segments[k].options.feed_mm_s);
     EXPECT_EQ(*s->path->Length(), *plan.segments[k].path->Length());
   }
+  EXPECT_FALSE(segments.Next());
+}
+
+// With window_blocks, a long chain comes out as soon as it is longer than that, and reads the rest
+// of its moves as it is built; the segments after it are BuildGcodePlan's. The lock sample: its
+// contour is one chain of 54 blocks.
+TEST(GcodeProgram, LongChainsAreReadAsTheyAreBuilt) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const io::GcodeProgram p = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
+  interp::VpopOptions o;
+  o.feed_mm_s = 1.0;
+  io::GcodeOptions go;
+  go.window_blocks = 8;
+  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, go);
+  std::size_t read = 0;
+  const auto source = [&]() -> std::optional<io::GcodeMove> {
+    if (read == p.moves.size()) return std::nullopt;
+    return p.moves[read++];
+  };
+  io::GcodeSegments scan(source, p.file, p.uses_rotary, *machine, o, go);
+  scan.ScanOnly();
+  std::vector<bool> five_axis;
+  std::size_t windowed = 0;
+  while (const auto s = scan.Next()) {
+    EXPECT_FALSE(s->path);
+    if (s->windowed) five_axis.push_back(s->five_axis);
+  }
+  ASSERT_GE(five_axis.size(), 1u);
+  read = 0;
+  io::GcodeSegments segments(source, p.file, p.uses_rotary, *machine, o, go);
+  segments.SetWindowedFiveAxis(five_axis);
+  for (std::size_t k = 0; k < plan.segments.size(); ++k) {
+    SCOPED_TRACE(plan.segments[k].name);
+    const std::size_t before = read;
+    const std::optional<io::GcodeSegment> s = segments.Next();
+    ASSERT_TRUE(s);
+    const auto& whole = *plan.segments[k].path;
+    if (!s->windowed) {
+      EXPECT_EQ(s->name, plan.segments[k].name);
+      EXPECT_EQ(*s->path->Length(), *whole.Length());
+      continue;
+    }
+    ++windowed;
+    EXPECT_LE(read - before, 10u);  // the window's 9 moves (and a repeated point or so)
+    EXPECT_FALSE(s->path->Length());
+    // Walked as a planner does, it is the whole chain.
+    int hint_a = 0, hint_b = 0;
+    for (double at = 0.0; at < *whole.Length(); at += 0.05) {
+      s->path->Reach(at + 10.0);
+      const PathSample a = whole.At({.piece = hint_a}, at), b = s->path->At({.piece = hint_b}, at);
+      hint_a = a.state.piece, hint_b = b.state.piece;
+      ASSERT_EQ(a.pose.tip, b.pose.tip) << at;
+    }
+    s->path->Reach(*whole.Length() + 1.0);
+    EXPECT_EQ(*s->path->Length(), *whole.Length());
+  }
+  EXPECT_EQ(windowed, five_axis.size());
   EXPECT_FALSE(segments.Next());
 }
 

@@ -50,6 +50,10 @@ TEST(JobFile, GcodePathOptions) {
   EXPECT_FALSE(ParseJob(gcode + "blend_rapids = false\n", "j.toml").path.gcode.blend_rapids);
   ExpectError([&] { ParseJob(gcode + "blend_rapids = 1\n", "j.toml"); },
               "j.toml:5: key 'path.blend_rapids'");
+  EXPECT_EQ(ParseJob(gcode, "j.toml").path.gcode.window_blocks, 4096u);
+  EXPECT_EQ(ParseJob(gcode + "window_blocks = 0\n", "j.toml").path.gcode.window_blocks, 0u);
+  ExpectError([&] { ParseJob(gcode + "window_blocks = -1\n", "j.toml"); },
+              "j.toml:5: key 'path.window_blocks': expected 0 or more blocks, got -1");
 }
 
 TEST(CurveFile, BadInputNamesFileLineAndItem) {

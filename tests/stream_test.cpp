@@ -85,6 +85,19 @@ TEST(Stream, EqualsTheRunWithTheSameHorizon) {
   }
 }
 
+// A chain of more than window_blocks blocks is streamed through a window (smoothed as it is
+// planned, dropped behind): the rows are still those `dtis run` plans from the whole chain.
+TEST(Stream, WindowedChainsStreamAsTheRunPlansThem) {
+  io::Job job = SampleJob("lock");
+  job.path.gcode.window_blocks = 8;
+  const io::RunResult run = io::RunJob(job);  // holds every chain whole
+  Capture out(run.machine->AxisCount());
+  const io::StreamResult r = StreamJob(job, *run.machine, &out);
+  EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+  ASSERT_EQ(out.rows.size(), run.table.Rows());
+  EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+}
+
 // An abort at many points of a 5-axis pass: the rows written are the planned ones up to where the
 // stop begins, then the stop brings every axis to rest within its limits.
 TEST(Stream, AbortAnywhereEndsAtRestWithinTheLimits) {

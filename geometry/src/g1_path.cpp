@@ -9,7 +9,6 @@
 #include <array>
 #include <cmath>
 #include <exception>
-#include <map>
 #include <mutex>
 #include <numbers>
 #include <span>
@@ -22,6 +21,13 @@ namespace dtis::geometry {
 namespace {
 
 using Eigen::Vector3d;
+
+// v.normalized(), the same operations, inlined into the pose evaluation (GCC stopped inlining
+// Eigen's on its own: 2 % of the 5-axis G-code sample's planning time).
+inline Vector3d Unit(const Vector3d& v) {
+  const double z = v.squaredNorm();
+  return z > 0.0 ? Vector3d(v / std::sqrt(z)) : v;
+}
 
 // The corner curve: five control points on the two blocks around `p2` (Eq. 1).
 BSplineCurve CornerCurve(const Vector3d& p2, const Vector3d& d_in, const Vector3d& d_out,
@@ -172,9 +178,11 @@ Vector3d EndTangent(const Vector3d& from, const ChainMove& move) {
   return -StartTangent(move.tip, reversed);
 }
 
-double ReachableFeed(const PathSource& path, const Machine& machine, double s0, double s1,
-                     double h) {
-  const double length = path.Length().value_or(s1);
+namespace {
+
+// ReachableFeed on a path whose samples are clamped to [0, length].
+double ReachableFeedWithin(const PathSource& path, const Machine& machine, double s0, double s1,
+                           double h, double length) {
   const int n = std::max(1, static_cast<int>(std::ceil((s1 - s0) / h)));
   h = (s1 - s0) / n;
   std::vector<AxisVector> q(static_cast<std::size_t>(n + 5));
@@ -205,8 +213,216 @@ double ReachableFeed(const PathSource& path, const Machine& machine, double s0, 
   return best;
 }
 
+}  // namespace
+
+double ReachableFeed(const PathSource& path, const Machine& machine, double s0, double s1,
+                     double h) {
+  return ReachableFeedWithin(path, machine, s0, s1, h, path.Length().value_or(s1));
+}
+
+// ---- building
+//
+// A chain is built move by move: the pieces of move i (vertex i to vertex i + 1) need the corners
+// at both of its ends, so move i + 1 must have been read. A chain given whole plans all its
+// corners first, in parallel; a windowed one plans each when its move is built. Either way a
+// corner depends on its vertex and the two around it only, so both build the same pieces.
+
+G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
+               const std::vector<ChainMove>& moves, const Machine& machine,
+               const CornerOptions& options) {
+  if (moves.empty()) throw Error("a G1 chain needs at least one move");
+  Init(start_tip, start_axis, machine, options);
+  const std::size_t n = moves.size();
+  for (const ChainMove& m : moves) {
+    if ((m.axis.normalized() - axis_).norm() > 1e-12) five_axis_ = true;
+  }
+  for (const ChainMove& m : moves) AddVertex(m);
+  read_all_ = true;
+
+  // Corners are independent of each other: they are planned in parallel (a CAM program's million
+  // corners in seconds), and the first one that fails in program order is reported, whatever the
+  // threads did.
+  std::vector<CornerPlan> plan(n + 1);
+  std::mutex failure_mutex;
+  std::size_t failed_at = n;
+  std::exception_ptr failure;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, n, 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                        try {
+                          plan[k] = PlanCorner(k);
+                        } catch (...) {
+                          const std::lock_guard lock(failure_mutex);
+                          if (k < failed_at) failed_at = k, failure = std::current_exception();
+                        }
+                      }
+                    });
+  if (failure) std::rethrow_exception(failure);
+  plans_.assign(std::make_move_iterator(plan.begin()), std::make_move_iterator(plan.end()));
+  plan.clear();
+  while (Advance()) {
+  }
+  Settle();
+}
+
+G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis, Window window,
+               const Machine& machine, const CornerOptions& options) {
+  Init(start_tip, start_axis, machine, options);
+  windowed_ = true;
+  five_axis_ = window.five_axis;
+  keep_behind_ = window.keep_behind_mm;
+  context_ = std::move(window.context);
+  first_ = std::move(window.first);
+  more_ = std::move(window.more);
+  plans_.emplace_back();  // vertex 0: no corner
+  if (!Pull()) throw Error("a G1 chain needs at least one move");
+}
+
+void G1Path::Init(const Vector3d& start_tip, const Vector3d& start_axis, const Machine& machine,
+                  const CornerOptions& options) {
+  if (!(options.contour_tol_mm > 0.0) || !(options.orientation_tol_mm > 0.0) ||
+      !(options.top_height_mm > 0.0)) {
+    throw Error("corner tolerances and the top height must be > 0 mm");
+  }
+  machine_ = &machine;
+  options_ = options;
+  h_ = options.top_height_mm;
+  top_param_ = options.top;
+  axis_ = start_axis.normalized();
+  vertices_.push_back({start_tip, start_tip + h_ * axis_, axis_, {}});
+  // Where corners come closer than a braking distance from the feed (F sqrt(F / J) with the
+  // lowest linear jerk), only the slowest of them is a slow point (Thin).
+  double jerk = INFINITY;
+  const auto axes = machine.Axes();
+  for (std::size_t i = 0; i < std::min<std::size_t>(3, axes.size()); ++i) {
+    jerk = std::min(jerk, axes[i].jmax);
+  }
+  window_ = std::isfinite(options.feed_mm_s) && std::isfinite(jerk)
+                ? options.feed_mm_s * std::sqrt(options.feed_mm_s / jerk)
+                : 0.0;
+}
+
+bool G1Path::Pull() const {
+  if (read_all_) return false;
+  std::optional<ChainMove> m;
+  if (first_next_ < first_.size()) {
+    m = first_[first_next_++];
+    if (first_next_ == first_.size()) std::vector<ChainMove>().swap(first_);
+  } else if (more_) {
+    m = more_();
+  }
+  if (!m) {
+    read_all_ = true;
+    more_ = nullptr;
+    return false;
+  }
+  InContext([&] { AddVertex(*m); });
+  return true;
+}
+
+void G1Path::AddVertex(const ChainMove& m) const {
+  const Vertex& prev = vertices_.back();
+  Vertex v{m.tip, Vector3d::Zero(), m.axis.normalized(), m};
+  v.t = v.p + h_ * v.axis;
+  if ((v.p - prev.p).norm() <= 1e-9 && m.kind == ChainMove::Kind::kLine) {
+    throw Error(
+        "line {}: the block does not move the tool tip (blocks that only turn the tool are "
+        "not supported inside a contour)",
+        m.line);
+  }
+  if (m.kind == ChainMove::Kind::kArc && (v.axis - prev.axis).norm() > 1e-12) {
+    throw Error("line {}: an arc cannot turn the tool axis", m.line);
+  }
+  if (moves_read_ == 0) first_line_ = m.line;
+  vertices_.push_back(std::move(v));
+  ++moves_read_;
+}
+
+// The corner at vertex k, between move k - 1 (into it) and move k (out of it).
+G1Path::CornerPlan G1Path::PlanCorner(std::size_t k) const {
+  CornerPlan c;
+  if (k == 0 || k >= moves_read_) return c;
+  const Vertex &v0 = V(k - 1), &v1 = V(k), &v2 = V(k + 1);
+  if (v1.move.kind != ChainMove::Kind::kLine || v2.move.kind != ChainMove::Kind::kLine) return c;
+  const auto linear =
+      machine_->Axes().subspan(0, std::min<std::size_t>(3, machine_->Axes().size()));
+  const double len_in = (v1.p - v0.p).norm(), len_out = (v2.p - v1.p).norm();
+  const Vector3d d_in = (v1.p - v0.p) / len_in, d_out = (v2.p - v1.p) / len_out;
+  const Vector3d top_in = (v1.t - v0.t) / len_in, top_out = (v2.t - v1.t) / len_out;
+  const double turn = Angle(d_in, d_out);
+  const bool top_turns = five_axis_ && (top_out - top_in).norm() > options_.straight_rad;
+  if (turn <= options_.straight_rad && !top_turns) return c;
+  if (turn > std::numbers::pi - 1e-9) {
+    throw Error("line {}: the path turns back on itself (a 180 degree corner cannot be smoothed)",
+                v2.move.line);
+  }
+  c.corner = true;
+  const double l2_max = 0.5 * std::min(len_in, len_out);
+  if (turn > options_.straight_rad) {
+    // Eq. 3 with the turning angle: eps = L1 cos(alpha / 2) / 2, alpha = pi - turn.
+    c.l1 = std::min(2.0 * options_.contour_tol_mm / std::sin(0.5 * turn), 0.5 * l2_max);
+    // L2 by Eq. 8: a coarse scan on a log scale, then golden-section refinement.
+    const CornerFeed corner_feed(d_in, d_out, linear, options_.feed_mm_s);
+    const auto feed = [&](double l2) { return corner_feed(c.l1, l2); };
+    const double lo = c.l1 * (1.0 + 1e-3);
+    double best = l2_max, best_feed = feed(l2_max);
+    constexpr int kScan = 8;
+    for (int i = 0; i < kScan; ++i) {
+      const double l2 = lo * std::pow(l2_max / lo, static_cast<double>(i) / kScan);
+      const double f = feed(l2);
+      if (f > best_feed) best = l2, best_feed = f;
+    }
+    const double ratio = std::pow(l2_max / lo, 1.0 / kScan);
+    double a = std::log(std::max(lo, best / ratio)), b = std::log(std::min(l2_max, best * ratio));
+    const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+    double x1 = b - g * (b - a), x2 = a + g * (b - a);
+    double f1 = feed(std::exp(x1)), f2 = feed(std::exp(x2));
+    for (int i = 0; i < 12; ++i) {
+      if (f1 >= f2) {
+        b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = feed(std::exp(x1));
+      } else {
+        a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = feed(std::exp(x2));
+      }
+    }
+    for (const auto& [x, f] : {std::pair{x1, f1}, std::pair{x2, f2}}) {
+      if (f > best_feed) best = std::exp(x), best_feed = f;
+    }
+    c.l2 = best;
+    c.feed = best_feed;
+  } else {
+    c.l2 = l2_max;  // the tip goes straight; only the tool axis turns here
+    c.l1 = 0.5 * c.l2;
+  }
+  c.bottom =
+      std::make_shared<const BSplineCurve>(CornerCurve(v1.p, d_in, d_out, c.l1, c.l2, c.l1, c.l2));
+  if (five_axis_) {
+    // The top point's control lengths scale with its rate on either block (mm of top per mm of
+    // tip), so that its line pieces keep the programmed correspondence; its inner length is set
+    // by eps_top, measured densely.
+    const double r_in = top_in.norm(), r_out = top_out.norm();
+    c.r_in = r_in;
+    c.r_out = r_out;
+    const double bend = (top_out - top_in).norm();
+    double l1 =
+        bend > 0.0 ? std::min(4.0 * options_.orientation_tol_mm / bend, 0.5 * c.l2) : 0.5 * c.l2;
+    const Vector3d e_in = r_in > 0.0 ? Vector3d(top_in / r_in) : Vector3d::Zero();
+    const Vector3d e_out = r_out > 0.0 ? Vector3d(top_out / r_out) : Vector3d::Zero();
+    for (int i = 0;; ++i, l1 *= 0.8) {
+      c.top = std::make_shared<const BSplineCurve>(
+          CornerCurve(v1.t, e_in, e_out, r_in * l1, r_in * c.l2, r_out * l1, r_out * c.l2));
+      if (i == 40 ||
+          DeviationFromCorner(*c.top, v1.t - r_in * c.l2 * e_in, v1.t,
+                              v1.t + r_out * c.l2 * e_out) <= options_.orientation_tol_mm) {
+        break;
+      }
+    }
+  }
+  c.length = ArcLengthOfCurve(*c.bottom);
+  return c;
+}
+
 void G1Path::AddLine(const Vector3d& a, const Vector3d& b, const Vector3d& ta, const Vector3d& tb,
-                     int line) {
+                     int line) const {
   const double length = (b - a).norm();
   if (!(length > 1e-12)) return;
   Piece p;
@@ -222,285 +438,280 @@ void G1Path::AddLine(const Vector3d& a, const Vector3d& b, const Vector3d& ta, c
   length_ += length;
 }
 
-G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis,
-               const std::vector<ChainMove>& moves, const Machine& machine,
-               const CornerOptions& options)
-    : h_(options.top_height_mm), top_param_(options.top), axis_(start_axis.normalized()) {
-  if (moves.empty()) throw Error("a G1 chain needs at least one move");
-  if (!(options.contour_tol_mm > 0.0) || !(options.orientation_tol_mm > 0.0) ||
-      !(options.top_height_mm > 0.0)) {
-    throw Error("corner tolerances and the top height must be > 0 mm");
-  }
-  const std::size_t n = moves.size();
-  std::vector<Vector3d> p(n + 1), t(n + 1), axis(n + 1);
-  p[0] = start_tip;
-  axis[0] = axis_;
-  for (std::size_t i = 0; i < n; ++i) {
-    p[i + 1] = moves[i].tip;
-    axis[i + 1] = moves[i].axis.normalized();
-    if ((axis[i + 1] - axis_).norm() > 1e-12) five_axis_ = true;
-  }
-  for (std::size_t i = 0; i <= n; ++i) t[i] = p[i] + h_ * axis[i];
-  for (std::size_t i = 0; i < n; ++i) {
-    const ChainMove& m = moves[i];
-    if ((p[i + 1] - p[i]).norm() <= 1e-9 && m.kind == ChainMove::Kind::kLine) {
-      throw Error(
-          "line {}: the block does not move the tool tip (blocks that only turn the tool are "
-          "not supported inside a contour)",
-          m.line);
-    }
-    if (m.kind == ChainMove::Kind::kArc && (axis[i + 1] - axis[i]).norm() > 1e-12) {
-      throw Error("line {}: an arc cannot turn the tool axis", m.line);
-    }
-  }
-  const auto linear = machine.Axes().subspan(0, std::min<std::size_t>(3, machine.Axes().size()));
-
-  // Corners at interior vertices between two lines: their control lengths first (each may take
-  // up to half of either block), then the pieces. Corners are independent of each other: they
-  // are built in parallel (a CAM program's million corners in seconds), and the first one that
-  // fails in program order is reported, whatever the threads did.
-  struct Plan {
-    bool corner = false;
-    double l1 = 0.0, l2 = 0.0, feed = INFINITY, length = 0.0;
-    std::shared_ptr<const BSplineCurve> bottom, top;
-    double r_in = 0.0, r_out = 0.0;  // mm of top per mm of tip on either block (5-axis)
-  };
-  std::vector<Plan> plan(n + 1);
-  std::mutex failure_mutex;
-  std::size_t failed_at = n;
-  std::exception_ptr failure;
-  const auto plan_corner = [&](std::size_t k) {
-    if (moves[k - 1].kind != ChainMove::Kind::kLine || moves[k].kind != ChainMove::Kind::kLine) {
-      return;
-    }
-    const double len_in = (p[k] - p[k - 1]).norm(), len_out = (p[k + 1] - p[k]).norm();
-    const Vector3d d_in = (p[k] - p[k - 1]) / len_in, d_out = (p[k + 1] - p[k]) / len_out;
-    const Vector3d top_in = (t[k] - t[k - 1]) / len_in, top_out = (t[k + 1] - t[k]) / len_out;
-    const double turn = Angle(d_in, d_out);
-    const bool top_turns = five_axis_ && (top_out - top_in).norm() > options.straight_rad;
-    if (turn <= options.straight_rad && !top_turns) return;
-    if (turn > std::numbers::pi - 1e-9) {
-      throw Error("line {}: the path turns back on itself (a 180 degree corner cannot be smoothed)",
-                  moves[k].line);
-    }
-    Plan& c = plan[k];
-    c.corner = true;
-    const double l2_max = 0.5 * std::min(len_in, len_out);
-    if (turn > options.straight_rad) {
-      // Eq. 3 with the turning angle: eps = L1 cos(alpha / 2) / 2, alpha = pi - turn.
-      c.l1 = std::min(2.0 * options.contour_tol_mm / std::sin(0.5 * turn), 0.5 * l2_max);
-      // L2 by Eq. 8: a coarse scan on a log scale, then golden-section refinement.
-      const CornerFeed corner_feed(d_in, d_out, linear, options.feed_mm_s);
-      const auto feed = [&](double l2) { return corner_feed(c.l1, l2); };
-      const double lo = c.l1 * (1.0 + 1e-3);
-      double best = l2_max, best_feed = feed(l2_max);
-      constexpr int kScan = 8;
-      for (int i = 0; i < kScan; ++i) {
-        const double l2 = lo * std::pow(l2_max / lo, static_cast<double>(i) / kScan);
-        const double f = feed(l2);
-        if (f > best_feed) best = l2, best_feed = f;
-      }
-      const double ratio = std::pow(l2_max / lo, 1.0 / kScan);
-      double a = std::log(std::max(lo, best / ratio)), b = std::log(std::min(l2_max, best * ratio));
-      const double g = (std::sqrt(5.0) - 1.0) / 2.0;
-      double x1 = b - g * (b - a), x2 = a + g * (b - a);
-      double f1 = feed(std::exp(x1)), f2 = feed(std::exp(x2));
-      for (int i = 0; i < 12; ++i) {
-        if (f1 >= f2) {
-          b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = feed(std::exp(x1));
-        } else {
-          a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = feed(std::exp(x2));
-        }
-      }
-      for (const auto& [x, f] : {std::pair{x1, f1}, std::pair{x2, f2}}) {
-        if (f > best_feed) best = std::exp(x), best_feed = f;
-      }
-      c.l2 = best;
-      c.feed = best_feed;
-    } else {
-      c.l2 = l2_max;  // the tip goes straight; only the tool axis turns here
-      c.l1 = 0.5 * c.l2;
-    }
-    c.bottom = std::make_shared<const BSplineCurve>(
-        CornerCurve(p[k], d_in, d_out, c.l1, c.l2, c.l1, c.l2));
-    if (five_axis_) {
-      // The top point's control lengths scale with its rate on either block (mm of top per mm
-      // of tip), so that its line pieces keep the programmed correspondence; its inner length
-      // is set by eps_top, measured densely.
-      const double r_in = top_in.norm(), r_out = top_out.norm();
-      c.r_in = r_in;
-      c.r_out = r_out;
-      const double bend = (top_out - top_in).norm();
-      double l1 =
-          bend > 0.0 ? std::min(4.0 * options.orientation_tol_mm / bend, 0.5 * c.l2) : 0.5 * c.l2;
-      const Vector3d e_in = r_in > 0.0 ? Vector3d(top_in / r_in) : Vector3d::Zero();
-      const Vector3d e_out = r_out > 0.0 ? Vector3d(top_out / r_out) : Vector3d::Zero();
-      for (int i = 0;; ++i, l1 *= 0.8) {
-        c.top = std::make_shared<const BSplineCurve>(
-            CornerCurve(t[k], e_in, e_out, r_in * l1, r_in * c.l2, r_out * l1, r_out * c.l2));
-        if (i == 40 ||
-            DeviationFromCorner(*c.top, t[k] - r_in * c.l2 * e_in, t[k],
-                                t[k] + r_out * c.l2 * e_out) <= options.orientation_tol_mm) {
-          break;
-        }
-      }
-    }
-    c.length = ArcLengthOfCurve(*c.bottom);
-  };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, n, 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                        try {
-                          plan_corner(k);
-                        } catch (...) {
-                          const std::lock_guard lock(failure_mutex);
-                          if (k < failed_at) failed_at = k, failure = std::current_exception();
-                        }
-                      }
-                    });
-  if (failure) std::rethrow_exception(failure);
-
-  // Pieces in order: for each move, the corner at its start (if any) was added with the previous
-  // move; add the move itself trimmed by the corners at both ends, then the corner at its end.
-  for (std::size_t i = 0; i < n; ++i) {
-    const ChainMove& m = moves[i];
-    const double l2_start = plan[i].corner ? plan[i].l2 : 0.0;
-    const double l2_end = plan[i + 1].corner ? plan[i + 1].l2 : 0.0;
-    if (m.kind == ChainMove::Kind::kLine) {
-      const double len = (p[i + 1] - p[i]).norm();
-      const Vector3d d = (p[i + 1] - p[i]) / len, top_rate = (t[i + 1] - t[i]) / len;
-      AddLine(p[i] + l2_start * d, p[i + 1] - l2_end * d, t[i] + l2_start * top_rate,
-              t[i + 1] - l2_end * top_rate, m.line);
-    } else {
-      Piece a;
-      a.kind = Piece::Kind::kArc;
-      a.line = m.line;
-      a.s0 = length_;
-      const Vector3d r0 = p[i] - m.center;
-      const Vector3d r1 = p[i + 1] - m.center;
-      a.a = Vector3d(m.center.x(), m.center.y(), p[i].z());
-      a.radius = std::hypot(r0.x(), r0.y());
-      a.sweep = ArcSweep(r0, r1, m.clockwise);
-      a.d = Vector3d(r0.x(), r0.y(), 0.0);
-      a.dz = p[i + 1].z() - p[i].z();
-      a.length = std::hypot(a.radius * a.sweep, a.dz);
-      if (!(a.radius > 1e-9)) throw Error("line {}: the arc has no radius", m.line);
-      pieces_.push_back(a);
-      length_ += a.length;
-    }
-    if (i + 1 < n && plan[i + 1].corner) {
-      const Plan& c = plan[i + 1];
-      Corner corner;
-      corner.l1 = c.l1;
-      corner.l2 = c.l2;
-      corner.line = m.line;
-      corner.bottom = c.bottom;
-      corner.top = c.top;
-      Piece piece;
-      piece.kind = Piece::Kind::kCorner;
-      piece.line = m.line;
-      piece.s0 = length_;
-      piece.corner = static_cast<int>(corners_.size());
-      piece.length = c.length;
-      if (five_axis_) {
-        const double S = piece.length;
-        // The top parameter's slope and curvature at both ends, in tip arc length, that make the
-        // top point move as on the blocks: C_t'(w) w' = rate e, C_t''(w) w'^2 + C_t'(w) w'' = 0.
-        const auto ends = [&](double w, double rate, double* slope, double* second) {
-          Vector3d d[3];
-          corner.top->Derivatives(w, 2, d);
-          const double speed = d[1].norm();
-          if (!(speed > 1e-12) || !(rate > 0.0)) {
-            *slope = 1.0 / S;
-            *second = 0.0;
-            return;
-          }
-          *slope = rate / speed;
-          *second = -d[2].dot(d[1] / speed) * (*slope) * (*slope) / speed;
-        };
-        double s0d, s0dd, s1d, s1dd;
-        ends(0.0, c.r_in, &s0d, &s0dd);
-        ends(1.0, c.r_out, &s1d, &s1dd);
-        const double a1 = S * s0d, a2 = S * S * s0dd, b1 = S * s1d, b2 = S * S * s1dd;
-        piece.w[0] = 0.0;
-        piece.w[1] = a1;
-        piece.w[2] = a2 / 2.0;
-        piece.w[3] = -6.0 * a1 - 1.5 * a2 + 10.0 - 4.0 * b1 + 0.5 * b2;
-        piece.w[4] = 8.0 * a1 + 1.5 * a2 - 15.0 + 7.0 * b1 - b2;
-        piece.w[5] = -3.0 * a1 - 0.5 * a2 + 6.0 - 3.0 * b1 + 0.5 * b2;
-        if (options.top == TopParametrization::kC2) {
-          for (int j = 0; j <= 200; ++j) {
-            const double x = j / 200.0;
-            const double slope =
-                piece.w[1] +
-                x * (2.0 * piece.w[2] +
-                     x * (3.0 * piece.w[3] + x * (4.0 * piece.w[4] + x * 5.0 * piece.w[5])));
-            if (!(slope > 0.0)) {
-              throw Error(
-                  "line {}: the tool axis turns too unevenly around this corner for a monotone "
-                  "C2 orientation; split the blocks more evenly",
-                  m.line);
-            }
-          }
-        }
-      }
-      corner.s0 = piece.s0;
-      corner.s1 = piece.s0 + piece.length;
-      corner.reachable_feed_mm_s = std::min(c.feed, options.feed_mm_s);
-      corners_.push_back(std::move(corner));
-      pieces_.push_back(std::move(piece));
-      length_ += pieces_.back().length;
-    }
-  }
-  if (!(length_ > 0.0)) throw Error("line {}: the contour has no length", moves.front().line);
-
-  // Slow points in the middle of each corner, at the feed Eq. 8 allows there: on the linear axes
-  // in 3-axis (exact for the corner curve), from finite differences of the machine's axis
-  // positions in 5-axis, over the corner and a little of both blocks.
-  for (Corner& c : corners_) {
-    if (five_axis_) {
-      const double span = c.s1 - c.s0;
-      c.reachable_feed_mm_s = std::min(
-          options.feed_mm_s, ReachableFeed(*this, machine, std::max(0.0, c.s0 - 0.1 * span),
-                                           std::min(length_, c.s1 + 0.1 * span), span / 64.0));
-    }
-    if (c.reachable_feed_mm_s < options.feed_mm_s) {
-      slow_.push_back({0.5 * (c.s0 + c.s1), c.reachable_feed_mm_s});
-    }
-  }
-  // Where corners come closer than a braking distance from the feed (F sqrt(F / J) with the
-  // lowest linear jerk), keep the slowest of them: the look-ahead plans one backward limit per
-  // slow point, and between close corners the exact axis checks decide anyway. A program of
-  // fine blocks (CAM output of a freeform) would otherwise plan one per block.
-  double jerk = INFINITY;
-  for (const Axis& a : linear) jerk = std::min(jerk, a.jmax);
-  const double window = std::isfinite(options.feed_mm_s) && std::isfinite(jerk)
-                            ? options.feed_mm_s * std::sqrt(options.feed_mm_s / jerk)
-                            : 0.0;
-  if (window > 0.0 && slow_.size() > 1) {
-    std::vector<std::size_t> order(slow_.size());
-    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-    std::stable_sort(order.begin(), order.end(), [this](std::size_t a, std::size_t b) {
-      return slow_[a].feed_mm_s < slow_[b].feed_mm_s;
-    });
-    std::map<double, double> kept;  // s -> feed
-    for (const std::size_t k : order) {
-      const double s = slow_[k].s;
-      const auto next = kept.lower_bound(s);
-      if (next != kept.end() && next->first - s < window) continue;
-      if (next != kept.begin() && s - std::prev(next)->first < window) continue;
-      kept.emplace(s, slow_[k].feed_mm_s);
-    }
-    slow_.clear();
-    for (const auto& [s, feed] : kept) slow_.push_back({s, feed});
+template <typename F>
+auto G1Path::InContext(F&& f) const -> decltype(f()) {
+  if (context_.empty()) return f();
+  try {
+    return f();
+  } catch (const Error& e) {
+    throw Error("{}: {}", context_, e.what());
   }
 }
 
-const G1Path::CornerMaps& G1Path::Maps(int corner) const {
-  if (maps_.empty()) maps_.resize(std::min(kCachedCorners, corners_.size()));
+bool G1Path::Advance() const {
+  if (built_all_) return false;
+  while (moves_read_ < next_move_ + 2 && Pull()) {
+  }
+  return InContext([this] { return AdvanceRead(); });
+}
+
+bool G1Path::AdvanceRead() const {
+  const std::size_t i = next_move_;
+  if (i >= moves_read_) {
+    built_all_ = true;
+    if (!(length_ > 0.0)) throw Error("line {}: the contour has no length", first_line_);
+    return false;
+  }
+  // The corner at the end of move i (none after the last move).
+  if (plan_base_ + plans_.size() == i + 1) plans_.push_back(PlanCorner(i + 1));
+  const CornerPlan& start = plans_[i - plan_base_];
+  const CornerPlan& end = plans_[i + 1 - plan_base_];
+  const Vertex &v0 = V(i), &v1 = V(i + 1);
+  const ChainMove& m = v1.move;
+  // The move trimmed by the corners at both ends, then the corner at its end.
+  const double l2_start = start.corner ? start.l2 : 0.0;
+  const double l2_end = end.corner ? end.l2 : 0.0;
+  if (m.kind == ChainMove::Kind::kLine) {
+    const double len = (v1.p - v0.p).norm();
+    const Vector3d d = (v1.p - v0.p) / len, top_rate = (v1.t - v0.t) / len;
+    AddLine(v0.p + l2_start * d, v1.p - l2_end * d, v0.t + l2_start * top_rate,
+            v1.t - l2_end * top_rate, m.line);
+  } else {
+    Piece a;
+    a.kind = Piece::Kind::kArc;
+    a.line = m.line;
+    a.s0 = length_;
+    const Vector3d r0 = v0.p - m.center;
+    const Vector3d r1 = v1.p - m.center;
+    a.a = Vector3d(m.center.x(), m.center.y(), v0.p.z());
+    a.radius = std::hypot(r0.x(), r0.y());
+    a.sweep = ArcSweep(r0, r1, m.clockwise);
+    a.d = Vector3d(r0.x(), r0.y(), 0.0);
+    a.dz = v1.p.z() - v0.p.z();
+    a.length = std::hypot(a.radius * a.sweep, a.dz);
+    if (!(a.radius > 1e-9)) throw Error("line {}: the arc has no radius", m.line);
+    pieces_.push_back(a);
+    length_ += a.length;
+  }
+  if (end.corner) {
+    const CornerPlan& c = end;
+    Corner corner;
+    corner.l1 = c.l1;
+    corner.l2 = c.l2;
+    corner.line = m.line;
+    corner.bottom = c.bottom;
+    corner.top = c.top;
+    Piece piece;
+    piece.kind = Piece::Kind::kCorner;
+    piece.line = m.line;
+    piece.s0 = length_;
+    piece.corner = static_cast<long>(CornersBuilt());
+    piece.length = c.length;
+    if (five_axis_) {
+      const double S = piece.length;
+      // The top parameter's slope and curvature at both ends, in tip arc length, that make the
+      // top point move as on the blocks: C_t'(w) w' = rate e, C_t''(w) w'^2 + C_t'(w) w'' = 0.
+      const auto ends = [&](double w, double rate, double* slope, double* second) {
+        Vector3d d[3];
+        corner.top->Derivatives(w, 2, d);
+        const double speed = d[1].norm();
+        if (!(speed > 1e-12) || !(rate > 0.0)) {
+          *slope = 1.0 / S;
+          *second = 0.0;
+          return;
+        }
+        *slope = rate / speed;
+        *second = -d[2].dot(d[1] / speed) * (*slope) * (*slope) / speed;
+      };
+      double s0d, s0dd, s1d, s1dd;
+      ends(0.0, c.r_in, &s0d, &s0dd);
+      ends(1.0, c.r_out, &s1d, &s1dd);
+      const double a1 = S * s0d, a2 = S * S * s0dd, b1 = S * s1d, b2 = S * S * s1dd;
+      piece.w[0] = 0.0;
+      piece.w[1] = a1;
+      piece.w[2] = a2 / 2.0;
+      piece.w[3] = -6.0 * a1 - 1.5 * a2 + 10.0 - 4.0 * b1 + 0.5 * b2;
+      piece.w[4] = 8.0 * a1 + 1.5 * a2 - 15.0 + 7.0 * b1 - b2;
+      piece.w[5] = -3.0 * a1 - 0.5 * a2 + 6.0 - 3.0 * b1 + 0.5 * b2;
+      if (options_.top == TopParametrization::kC2) {
+        for (int j = 0; j <= 200; ++j) {
+          const double x = j / 200.0;
+          const double slope =
+              piece.w[1] +
+              x * (2.0 * piece.w[2] +
+                   x * (3.0 * piece.w[3] + x * (4.0 * piece.w[4] + x * 5.0 * piece.w[5])));
+          if (!(slope > 0.0)) {
+            throw Error(
+                "line {}: the tool axis turns too unevenly around this corner for a monotone "
+                "C2 orientation; split the blocks more evenly",
+                m.line);
+          }
+        }
+      }
+    }
+    corner.s0 = piece.s0;
+    corner.s1 = piece.s0 + piece.length;
+    corner.reachable_feed_mm_s = std::min(c.feed, options_.feed_mm_s);
+    corners_.push_back(std::move(corner));
+    pieces_.push_back(std::move(piece));
+    length_ += pieces_.back().length;
+  }
+  ++next_move_;
+  // Move i + 1 needs vertices i + 1 and on, and the corner plans from i + 1.
+  while (vertex_base_ < next_move_) vertices_.pop_front(), ++vertex_base_;
+  while (plan_base_ < next_move_) plans_.pop_front(), ++plan_base_;
+  return true;
+}
+
+// Slow points in the middle of each corner, at the feed Eq. 8 allows there: on the linear axes in
+// 3-axis (exact for the corner curve, found when it was planned), from finite differences of the
+// machine's axis positions in 5-axis, over the corner and a little of both blocks (which must be
+// built by then).
+void G1Path::Settle() const {
+  while (settled_ < CornersBuilt()) {
+    Corner& c = corners_[settled_ - corner_base_];
+    const double span = c.s1 - c.s0;
+    if (five_axis_) {
+      if (!built_all_ && !(length_ > c.s1 + 0.2 * span)) break;
+      const double length = built_all_ ? length_ : INFINITY;
+      const double feed = InContext([&] {
+        return ReachableFeedWithin(*this, *machine_, std::max(0.0, c.s0 - 0.1 * span),
+                                   std::min(length, c.s1 + 0.1 * span), span / 64.0, length);
+      });
+      c.reachable_feed_mm_s = std::min(options_.feed_mm_s, feed);
+    }
+    if (c.reachable_feed_mm_s < options_.feed_mm_s) {
+      candidates_.push_back(
+          {0.5 * (c.s0 + c.s1), c.reachable_feed_mm_s, static_cast<long>(settled_)});
+    }
+    ++settled_;
+  }
+  // Every slow point still to come lies beyond the next corner's start (or the built length).
+  const double frontier = settled_ < CornersBuilt() ? corners_[settled_ - corner_base_].s0
+                          : built_all_              ? INFINITY
+                                                    : length_;
+  Thin(frontier);
+}
+
+// Where corners come closer than `window_` to each other, keep the slowest: the look-ahead plans
+// one backward limit per slow point, and between close corners the exact axis checks decide
+// anyway. A program of fine blocks (CAM output of a freeform) would otherwise plan one per block.
+//
+// Taken in order of feed (the earlier corner first at equal feed), a point is kept unless a kept
+// point lies closer than the window. A point is decided once every slower point near it is, and
+// no point still to come (beyond `frontier`) can be near it; so a chain built bit by bit thins as
+// the whole chain does.
+void G1Path::Thin(double frontier) const {
+  using State = Candidate::State;
+  const auto slower = [](const Candidate& a, const Candidate& b) {
+    return a.feed < b.feed || (a.feed == b.feed && a.order < b.order);
+  };
+  std::vector<std::size_t> open;
+  for (std::size_t k = emitted_; k < candidates_.size(); ++k) {
+    if (candidates_[k].state == State::kOpen && frontier - candidates_[k].s >= window_) {
+      open.push_back(k);
+    }
+  }
+  std::sort(open.begin(), open.end(),
+            [&](std::size_t a, std::size_t b) { return slower(candidates_[a], candidates_[b]); });
+  for (const std::size_t k : open) {
+    Candidate& p = candidates_[k];
+    bool undecided = false, blocked = false;
+    const auto look = [&](std::size_t j) {
+      const Candidate& q = candidates_[j];
+      if (!slower(q, p)) return;
+      if (q.state == State::kOpen) undecided = true;
+      if (q.state == State::kKept) blocked = true;
+    };
+    for (std::size_t j = k; j-- > 0 && p.s - candidates_[j].s < window_;) look(j);
+    for (std::size_t j = k + 1; j < candidates_.size() && candidates_[j].s - p.s < window_; ++j) {
+      look(j);
+    }
+    if (blocked) {
+      p.state = State::kDropped;
+    } else if (!undecided) {
+      p.state = State::kKept;
+    }
+  }
+  // Hand over the decided ones in order, and forget those no open point can need.
+  while (emitted_ < candidates_.size() && candidates_[emitted_].state != State::kOpen) {
+    const Candidate& c = candidates_[emitted_++];
+    if (c.state == State::kKept) slow_.push_back({c.s, c.feed});
+  }
+  const double first_open = emitted_ < candidates_.size() ? candidates_[emitted_].s : INFINITY;
+  decided_to_ = std::min(first_open, frontier);
+  while (emitted_ > 0 && candidates_.front().s + window_ <= decided_to_) {
+    candidates_.pop_front();
+    --emitted_;
+  }
+}
+
+void G1Path::BuildTo(double s) const {
+  while (!(decided_to_ > s && (length_ > s || built_all_))) {
+    const double target = std::max(s, length_) + 2.0 * window_ + 1.0;
+    while (length_ <= target && Advance()) {
+    }
+    Settle();
+  }
+}
+
+std::optional<double> G1Path::Length() const {
+  if (!built_all_) return std::nullopt;
+  return length_;
+}
+
+std::span<const SlowPoint> G1Path::SlowPoints() const {
+  return std::span<const SlowPoint>(slow_).subspan(slow_dead_);
+}
+
+void G1Path::Reach(double s) const {
+  if (windowed_) BuildTo(s);
+}
+
+void G1Path::Release(double s) const {
+  if (!windowed_ || !(s > released_)) return;
+  released_ = s;
+  const double keep_from = s - keep_behind_;
+  // What lies wholly behind keep_from goes, in batches (the storage stays contiguous for Find).
+  const auto pieces_behind = static_cast<std::size_t>(
+      std::partition_point(pieces_.begin(), pieces_.end() - 1,
+                           [&](const Piece& p) { return p.s0 + p.length < keep_from; }) -
+      pieces_.begin());
+  if (pieces_behind > 64 && 2 * pieces_behind > pieces_.size()) {
+    pieces_.erase(pieces_.begin(), pieces_.begin() + static_cast<std::ptrdiff_t>(pieces_behind));
+    piece_base_ += static_cast<long>(pieces_behind);
+  }
+  const auto corners_behind = static_cast<std::size_t>(
+      std::partition_point(corners_.begin(),
+                           corners_.begin() + static_cast<std::ptrdiff_t>(settled_ - corner_base_),
+                           [&](const Corner& c) { return c.s1 < keep_from; }) -
+      corners_.begin());
+  if (corners_behind > 64 && 2 * corners_behind > corners_.size()) {
+    corners_.erase(corners_.begin(),
+                   corners_.begin() + static_cast<std::ptrdiff_t>(corners_behind));
+    corner_base_ += corners_behind;
+  }
+  while (slow_dead_ < slow_.size() && slow_[slow_dead_].s < keep_from) ++slow_dead_;
+  if (slow_dead_ > 64 && 2 * slow_dead_ > slow_.size()) {
+    slow_.erase(slow_.begin(), slow_.begin() + static_cast<std::ptrdiff_t>(slow_dead_));
+    slow_dead_ = 0;
+  }
+}
+
+void G1Path::Check() const {
+  while (!built_all_) {
+    BuildTo(length_ + 2.0 * window_ + 1.0);
+    Release(length_);
+  }
+  BuildTo(length_);
+}
+
+const G1Path::CornerMaps& G1Path::Maps(long corner) const {
+  if (maps_.empty())
+    maps_.resize(windowed_ ? kCachedCorners : std::min(kCachedCorners, corners_.size()));
   CornerMaps& slot = maps_[static_cast<std::size_t>(corner) % maps_.size()];
   if (slot.corner != corner) {
-    const Corner& c = corners_[static_cast<std::size_t>(corner)];
+    const Corner& c = CornerAt(corner);
     slot.bottom = std::make_shared<const ArcLengthMap>(ArcLengthOf(*c.bottom));
     slot.top = five_axis_ && top_param_ == TopParametrization::kTopArcLength
                    ? std::make_shared<const ArcLengthMap>(ArcLengthOf(*c.top))
@@ -510,23 +721,38 @@ const G1Path::CornerMaps& G1Path::Maps(int corner) const {
   return slot;
 }
 
-int G1Path::Find(double s, int hint) const {
-  const int last = static_cast<int>(pieces_.size()) - 1;
-  int i = std::clamp(hint, 0, last);
-  const auto& P = pieces_;
-  if (s >= P[static_cast<std::size_t>(i)].s0 &&
-      (i == last || s < P[static_cast<std::size_t>(i + 1)].s0)) {
-    return i;
+void G1Path::BuildPiecesTo(double s) const {
+  while (!(length_ > s) && Advance()) {
   }
-  const auto it =
-      std::upper_bound(P.begin(), P.end(), s, [](double x, const Piece& p) { return x < p.s0; });
-  return std::clamp(static_cast<int>(it - P.begin()) - 1, 0, last);
+}
+
+void G1Path::FailBehind(double s) const {
+  throw Error(
+      "arc length {} mm lies behind the part of the chain still held (from {} mm): the planner "
+      "stepped back further than the chain keeps",
+      s, pieces_.front().s0);
+}
+
+long G1Path::Find(double s, long hint) const {
+  if (!built_all_ && !(length_ > s)) [[unlikely]] {
+    BuildPiecesTo(s);
+  }
+  const long first = piece_base_;
+  const long last = piece_base_ + static_cast<long>(pieces_.size()) - 1;
+  if (first > 0 && s < pieces_.front().s0) [[unlikely]] {
+    FailBehind(s);
+  }
+  long i = std::clamp(hint, first, last);
+  if (s >= PieceAt(i).s0 && (i == last || s < PieceAt(i + 1).s0)) return i;
+  const auto it = std::upper_bound(pieces_.begin(), pieces_.end(), s,
+                                   [](double x, const Piece& p) { return x < p.s0; });
+  return std::clamp(first + static_cast<long>(it - pieces_.begin()) - 1, first, last);
 }
 
 Pose G1Path::PoseAt(double s, int* hint) const {
-  const int i = Find(s, *hint);
-  *hint = i;
-  const Piece& p = pieces_[static_cast<std::size_t>(i)];
+  const long i = Find(s, *hint);
+  *hint = static_cast<int>(i);
+  const Piece& p = PieceAt(i);
   const double local = std::clamp(s - p.s0, 0.0, p.length);
   Pose pose;
   switch (p.kind) {
@@ -534,7 +760,7 @@ Pose G1Path::PoseAt(double s, int* hint) const {
       pose.tip = p.a + local * p.d;
       if (five_axis_) {
         const Vector3d top = p.ta + (local / p.length) * (p.tb - p.ta);
-        pose.axis = (top - pose.tip).normalized();
+        pose.axis = Unit(top - pose.tip);
       } else {
         pose.axis = axis_;
       }
@@ -549,7 +775,7 @@ Pose G1Path::PoseAt(double s, int* hint) const {
       break;
     }
     case Piece::Kind::kCorner: {
-      const Corner& corner = corners_[static_cast<std::size_t>(p.corner)];
+      const Corner& corner = CornerAt(p.corner);
       const CornerMaps& maps = Maps(p.corner);
       int map_hint = 0;
       const double u = maps.bottom->Parameter(local, &map_hint);
@@ -575,7 +801,7 @@ Pose G1Path::PoseAt(double s, int* hint) const {
           break;
         }
       }
-      pose.axis = (corner.top->Point(std::clamp(w, 0.0, 1.0)) - pose.tip).normalized();
+      pose.axis = Unit(corner.top->Point(std::clamp(w, 0.0, 1.0)) - pose.tip);
       break;
     }
   }
@@ -584,7 +810,10 @@ Pose G1Path::PoseAt(double s, int* hint) const {
 
 PathSample G1Path::At(const PathState& from, double s) const {
   PathSample sample;
-  if (s >= length_) {
+  if (!built_all_ && !(length_ > s)) [[unlikely]] {
+    BuildPiecesTo(s);
+  }
+  if (built_all_ && s >= length_) {
     sample.status = s > length_ ? PathStatus::kEnd : PathStatus::kOk;
     s = length_;
   }
@@ -595,8 +824,10 @@ PathSample G1Path::At(const PathState& from, double s) const {
 }
 
 std::string G1Path::Describe(const PathState& state) const {
-  const int i = Find(state.s, state.piece);
-  const Piece& p = pieces_[static_cast<std::size_t>(i)];
+  if (piece_base_ > 0 && state.s < pieces_.front().s0) {
+    return fmt::format("arc length {} mm", state.s);
+  }
+  const Piece& p = PieceAt(Find(state.s, state.piece));
   return fmt::format("arc length {} mm, {} of the block at line {}", state.s,
                      p.kind == Piece::Kind::kCorner ? "in the corner at the end"
                      : p.kind == Piece::Kind::kArc  ? "on the arc"

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <map>
 #include <numbers>
 #include <optional>
 
@@ -257,8 +258,8 @@ class Planner {
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Direction(const History& h);
   Effective Available(const History& h, const Box& box, const Interval& t);
   std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e);
-  // The backward limit of slow point k (nullptr when it could not be planned).
-  const std::vector<std::pair<double, double>>* SlowCurve(std::size_t k, const Step& near);
+  // The backward limit of a slow point (nullptr when it could not be planned).
+  const std::vector<std::pair<double, double>>* SlowCurve(const SlowPoint& point, const Step& near);
   double ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
                   double feed) const;
   bool Solve(const History& h, const Box& box, double lo, double hi, double target, Step* out,
@@ -307,8 +308,9 @@ class Planner {
   // Where the planner last came back to rest with no step forward kept, and how many times in a
   // row: each time, the next greedy step from there is halved (Produce).
   double last_stuck_s_ = -1.0;
-  // Per slow point: not planned yet, planned (ascending (s, feed)), or failed (empty).
-  std::vector<std::optional<std::vector<std::pair<double, double>>>> curves_;
+  // Per slow point planned so far, by its arc length: its backward limit (ascending (s, feed)),
+  // empty when it could not be planned. Those behind the released steps are dropped (Commit).
+  std::map<double, std::vector<std::pair<double, double>>> curves_;
   int stuck_count_ = 0;
 };
 
@@ -543,12 +545,11 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   return lo;
 }
 
-const std::vector<std::pair<double, double>>* Planner::SlowCurve(std::size_t k, const Step& near) {
-  const auto slow = path_.SlowPoints();
-  if (curves_.size() != slow.size()) curves_.assign(slow.size(), std::nullopt);
-  auto& curve = curves_[k];
-  if (!curve) {
-    const SlowPoint& point = slow[k];
+const std::vector<std::pair<double, double>>* Planner::SlowCurve(const SlowPoint& point,
+                                                                 const Step& near) {
+  auto [it, added] = curves_.try_emplace(point.s);
+  auto& curve = it->second;
+  if (added) {
     VpopOptions o = o_;
     o.start_feed_mm_s = std::min(point.feed_mm_s, o_.feed_mm_s);
     o.commit_horizon = 64;
@@ -561,10 +562,10 @@ const std::vector<std::pair<double, double>>* Planner::SlowCurve(std::size_t k, 
       summary_.evaluations += done.evaluations;
       curve = sink.Take();
     } catch (const Error&) {
-      curve.emplace();  // the law alone then brakes for this point
+      curve.clear();  // the law alone then brakes for this point
     }
   }
-  return curve->empty() ? nullptr : &*curve;
+  return curve.empty() ? nullptr : &curve;
 }
 
 // The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, pass the
@@ -586,13 +587,15 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
   // one more bound on the next step (the step may not be faster than the limit where it ends);
   // where it could not be planned, the stop law brakes for the point instead.
   double curve_target = INFINITY;
-  const auto slow = path_.SlowPoints();
   const double reach = s0 + 2.0 * (horizon - s0) + o_.feed_mm_s * dt_;
+  path_.Reach(reach);
+  if (!length_) length_ = path_.Length();
+  const auto slow = path_.SlowPoints();
   for (auto it = std::upper_bound(slow.begin(), slow.end(), s0,
                                   [](double s, const SlowPoint&p) { return s < p.s; });
        it != slow.end() && it->s < reach; ++it) {
     if (length_ && it->s >= *length_) break;
-    const auto* curve = SlowCurve(static_cast<std::size_t>(it - slow.begin()), *h.p0);
+    const auto* curve = SlowCurve(*it, *h.p0);
     if (!curve) {
       if (it->s >= horizon) continue;
       const double a = ArriveBy(h, a_hi, jerk, acceleration, it->s, it->feed_mm_s);
@@ -941,6 +944,9 @@ void Planner::Commit(long upto) {
     steps_.pop_front();
     ++base_;
   }
+  const double behind = steps_.front().s;
+  path_.Release(behind);
+  curves_.erase(curves_.begin(), curves_.lower_bound(behind));
 }
 
 // The stop from the last step handed over: the open steps up to the last proven-safe one (they

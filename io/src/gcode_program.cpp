@@ -76,43 +76,85 @@ GcodeSegment GcodeSegments::Flush() {
   segment.rapid = chain_rapid_;
   segment.options = base_;
   segment.options.feed_mm_s = chain_feed_;
-  if (chain_rapid_ && chain_.size() == 1) {
+  segment.five_axis = chain_five_axis_;
+  if (chain_rapid_ && chain_moves_ == 1) {
     // A lone rapid: the straight move it is.
-    segment.path = geometry::StraightMove(chain_tip_, chain_[0].tip, chain_axis_, chain_[0].axis);
-    segment.name = fmt::format("{}:{}: rapid", file_, chain_[0].line);
-  } else {
-    geometry::CornerOptions corners = options_.corners;
-    corners.feed_mm_s = chain_feed_;
-    std::unique_ptr<geometry::G1Path> path;
-    try {
-      path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
-    } catch (const Error& e) {
-      throw Error("{}: {}", file_, e.what());
+    if (!scan_only_) {
+      segment.path = geometry::StraightMove(chain_tip_, chain_[0].tip, chain_axis_, chain_[0].axis);
     }
-    segment.corners = static_cast<int>(path->Corners().size());
-    segment.name = fmt::format("{}: lines {}-{}{}", file_, chain_first_line_, chain_.back().line,
+    segment.name = fmt::format("{}:{}: rapid", file_, last_.line);
+  } else {
+    segment.windowed = options_.window_blocks > 0 && chain_moves_ > options_.window_blocks;
+    if (!scan_only_) {
+      geometry::CornerOptions corners = options_.corners;
+      corners.feed_mm_s = chain_feed_;
+      std::unique_ptr<geometry::G1Path> path;
+      try {
+        path =
+            std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
+      } catch (const Error& e) {
+        throw Error("{}: {}", file_, e.what());
+      }
+      segment.corners = static_cast<int>(path->Corners().size());
+      segment.path = std::move(path);
+    }
+    segment.name = fmt::format("{}: lines {}-{}{}", file_, chain_first_line_, last_.line,
                                chain_rapid_ ? " (rapids)" : "");
-    segment.path = std::move(path);
   }
   chain_.clear();
+  chain_moves_ = 0;
   return segment;
 }
 
-std::optional<GcodeSegment> GcodeSegments::Next() {
-  const auto where = [this](const GcodeMove& m) { return fmt::format("{}:{}", file_, m.line); };
-  if (!started_) {
-    const std::optional<GcodeMove> first = next_();
-    if (!first) throw Error("{}: the program has no moves", file_);
-    tip_ = first->to;
-    axis_ = axis_of_(*first);
-    started_ = true;
+// A chain of more than window_blocks moves: the path takes the moves read so far and reads the
+// rest from here (PullJoined) as the planner reaches them.
+GcodeSegment GcodeSegments::FlushWindowed() {
+  if (windowed_ >= windowed_five_axis_.size()) {
+    throw Error("{}: internal: a chain longer than {} blocks was not scanned before", file_,
+                options_.window_blocks);
   }
-  while (!ended_) {
+  GcodeSegment segment;
+  segment.rapid = chain_rapid_;
+  segment.windowed = true;
+  segment.five_axis = windowed_five_axis_[windowed_++];
+  segment.options = base_;
+  segment.options.feed_mm_s = chain_feed_;
+  segment.name =
+      fmt::format("{}: lines {}-{}", file_, chain_first_line_, chain_rapid_ ? " (rapids)" : "");
+  geometry::CornerOptions corners = options_.corners;
+  corners.feed_mm_s = chain_feed_;
+  // Behind the planner the chain keeps what its backward look-ahead may walk again: many times
+  // the distance to reach the feed from rest on the slowest linear axis, and a second of feed.
+  double acceleration = INFINITY, jerk = INFINITY;
+  const auto axes = machine_.Axes();
+  for (std::size_t i = 0; i < std::min<std::size_t>(3, axes.size()); ++i) {
+    acceleration = std::min(acceleration, axes[i].amax);
+    jerk = std::min(jerk, axes[i].jmax);
+  }
+  const double f = chain_feed_;
+  geometry::G1Path::Window window;
+  window.first = std::move(chain_);
+  window.more = [this] { return PullJoined(); };
+  window.five_axis = segment.five_axis;
+  window.keep_behind_mm =
+      std::max(window.keep_behind_mm, 8.0 * f * (f / acceleration + std::sqrt(f / jerk)) + 2.0 * f);
+  window.context = file_;
+  chain_.clear();
+  chain_moves_ = 0;
+  windowed_open_ = true;
+  try {
+    segment.path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, std::move(window),
+                                                      machine_, corners);
+  } catch (const Error& e) {
+    throw Error("{}: {}", file_, e.what());
+  }
+  return segment;
+}
+
+std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
+  for (;;) {
     const std::optional<GcodeMove> read = next_();
-    if (!read) {
-      ended_ = true;
-      break;
-    }
+    if (!read) return std::nullopt;
     const GcodeMove& m = *read;
     const Vector3d next_axis = axis_of_(m);
     const bool moves_tip = (m.to - tip_).norm() > 1e-9;
@@ -120,55 +162,118 @@ std::optional<GcodeSegment> GcodeSegments::Next() {
     if (!moves_tip && m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw) {
       if (turns) {
         throw Error(
-            "{}: the block turns the tool without moving its tip (not supported: give the "
+            "{}:{}: the block turns the tool without moving its tip (not supported: give the "
             "turn some tip motion)",
-            where(m));
+            file_, m.line);
       }
       continue;  // a repeated point
     }
-    // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids.
-    const bool is_rapid = m.kind == GcodeMove::Kind::kRapid;
-    const double feed =
-        is_rapid ? rapid_feed_ : std::min(m.feed_mm_min / 60.0, options_.max_feed_mm_s);
-    if (is_rapid) ++rapids_;
-    geometry::ChainMove c;
-    c.kind = m.kind == GcodeMove::Kind::kLinear || is_rapid ? geometry::ChainMove::Kind::kLine
-                                                            : geometry::ChainMove::Kind::kArc;
+    Read r;
+    r.rapid = m.kind == GcodeMove::Kind::kRapid;
+    r.feed = r.rapid ? rapid_feed_ : std::min(m.feed_mm_min / 60.0, options_.max_feed_mm_s);
+    if (r.rapid) ++rapids_;
+    geometry::ChainMove& c = r.move;
+    c.kind = m.kind == GcodeMove::Kind::kLinear || r.rapid ? geometry::ChainMove::Kind::kLine
+                                                           : geometry::ChainMove::Kind::kArc;
     c.tip = m.to;
     c.axis = next_axis;
     c.center = m.center;
     c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
     c.line = m.line;
-    bool joins = !chain_.empty() && feed == chain_feed_ && is_rapid == chain_rapid_ &&
-                 (!is_rapid || options_.blend_rapids);
-    if (joins) {
-      const geometry::ChainMove& prev = chain_.back();
-      const Vector3d prev_from = chain_.size() > 1 ? chain_[chain_.size() - 2].tip : chain_tip_;
-      const Vector3d out = geometry::EndTangent(prev_from, prev);
-      const Vector3d in = geometry::StartTangent(tip_, c);
-      const double angle = geometry::Angle(out, in);
-      const bool arc =
-          prev.kind == geometry::ChainMove::Kind::kArc || c.kind == geometry::ChainMove::Kind::kArc;
-      if (arc ? angle > options_.tangent_rad : angle > std::numbers::pi - 1e-6) joins = false;
+    return r;
+  }
+}
+
+// Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids. A chain ends
+// where an arc meets its neighbour at an angle, or the path turns back on itself.
+bool GcodeSegments::Joins(const Read& r) const {
+  if (r.feed != chain_feed_ || r.rapid != chain_rapid_ || (r.rapid && !options_.blend_rapids)) {
+    return false;
+  }
+  const Vector3d out = geometry::EndTangent(last_from_, last_);
+  const Vector3d in = geometry::StartTangent(tip_, r.move);
+  const double angle = geometry::Angle(out, in);
+  const bool arc = last_.kind == geometry::ChainMove::Kind::kArc ||
+                   r.move.kind == geometry::ChainMove::Kind::kArc;
+  return !(arc ? angle > options_.tangent_rad : angle > std::numbers::pi - 1e-6);
+}
+
+void GcodeSegments::Open(const Read& r) {
+  chain_tip_ = tip_;
+  chain_axis_ = axis_;
+  chain_feed_ = r.feed;
+  chain_first_line_ = r.move.line;
+  chain_rapid_ = r.rapid;
+  chain_five_axis_ = false;
+  chain_.clear();
+  chain_moves_ = 0;
+  Append(r);
+}
+
+void GcodeSegments::Append(const Read& r) {
+  if (!windowed_open_) {
+    if (!scan_only_) chain_.push_back(r.move);
+    ++chain_moves_;
+  }
+  // As G1Path decides it for the chain: some move's axis away from the start's.
+  if ((r.move.axis.normalized() - chain_axis_.normalized()).norm() > 1e-12) {
+    chain_five_axis_ = true;
+  }
+  last_from_ = tip_;
+  last_ = r.move;
+  tip_ = r.move.tip;
+  axis_ = r.move.axis;
+}
+
+std::optional<geometry::ChainMove> GcodeSegments::PullJoined() {
+  if (!windowed_open_) return std::nullopt;
+  std::optional<Read> r = ReadMove();
+  if (!r) {
+    ended_ = true;
+    windowed_open_ = false;
+    return std::nullopt;
+  }
+  if (!Joins(*r)) {
+    windowed_open_ = false;
+    Open(*r);  // the next chain's first move
+    return std::nullopt;
+  }
+  Append(*r);
+  return r->move;
+}
+
+std::optional<GcodeSegment> GcodeSegments::Next() {
+  if (!started_) {
+    const std::optional<GcodeMove> first = next_();
+    if (!first) throw Error("{}: the program has no moves", file_);
+    tip_ = first->to;
+    axis_ = axis_of_(*first);
+    started_ = true;
+  }
+  while (windowed_open_) PullJoined();  // what a windowed chain was not asked to read
+  while (!ended_) {
+    std::optional<Read> r = ReadMove();
+    if (!r) {
+      ended_ = true;
+      break;
     }
     std::optional<GcodeSegment> done;
-    if (!joins) {
-      if (!chain_.empty()) done = Flush();
-      chain_tip_ = tip_;
-      chain_axis_ = axis_;
-      chain_feed_ = feed;
-      chain_first_line_ = m.line;
-      chain_rapid_ = is_rapid;
+    if (chain_moves_ > 0 && Joins(*r)) {
+      Append(*r);
+    } else {
+      if (chain_moves_ > 0) done = Flush();
+      Open(*r);
     }
-    chain_.push_back(c);
-    tip_ = m.to;
-    axis_ = next_axis;
     if (done) {
       ++segments_;
       return done;
     }
+    if (!scan_only_ && options_.window_blocks > 0 && chain_moves_ > options_.window_blocks) {
+      ++segments_;
+      return FlushWindowed();
+    }
   }
-  if (!chain_.empty()) {
+  if (chain_moves_ > 0) {
     ++segments_;
     return Flush();
   }
@@ -182,12 +287,14 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
                          const interp::VpopOptions& base, const GcodeOptions& options) {
   GcodePlan plan;
   std::size_t k = 0;
+  GcodeOptions whole = options;
+  whole.window_blocks = 0;
   GcodeSegments segments(
       [&]() -> std::optional<GcodeMove> {
         if (k == program.moves.size()) return std::nullopt;
         return program.moves[k++];
       },
-      program.file, program.uses_rotary, machine, base, options);
+      program.file, program.uses_rotary, machine, base, whole);
   while (std::optional<GcodeSegment> s = segments.Next()) {
     plan.corners += s->corners;
     if (!s->rapid) {

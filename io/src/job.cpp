@@ -72,6 +72,10 @@ void ReadPath(TomlTable& root, Job* out) {
       job.path.gcode.rapid_feed_mm_s = *r / 60.0;
     }
     if (auto b = path.OptionalBoolean("blend_rapids")) job.path.gcode.blend_rapids = *b;
+    if (auto w = path.OptionalInteger("window_blocks")) {
+      if (*w < 0) path.Fail("window_blocks", fmt::format("expected 0 or more blocks, got {}", *w));
+      job.path.gcode.window_blocks = static_cast<std::size_t>(*w);
+    }
     if (path.Has("tool_axis")) path.Fail("tool_axis", "a G-code program sets its own tool axis");
     path.RejectUnknown();
     return;

@@ -118,8 +118,9 @@ class ListSegments final : public SegmentSource {
 };
 
 // A G-code program's segments, built as the stream reaches them: the machine holds one chain of
-// moves at a time, not the program. The program is read and its segments built once before, so
-// that a bad block or corner is reported before anything moves.
+// moves at a time, not the program, and of a chain longer than window_blocks only what lies
+// around the planner. The program is read and its segments built once before, so that a bad
+// block or corner is reported before anything moves.
 class GcodeProducer {
  public:
   GcodeProducer(const Job& job, const Machine& machine) : file_(job.path.gcode_file) {
@@ -135,14 +136,27 @@ class GcodeProducer {
       return std::make_unique<GcodeSegments>([&reader] { return reader.Next(); }, file_,
                                              uses_rotary, machine, job.vpop, job.path.gcode);
     };
+    // Which long chains turn the tool: they are smoothed as 5-axis chains from their first move.
+    std::vector<bool> five_axis;
+    {
+      GcodeReader reader(file_);
+      const auto scan = build(reader);
+      scan->ScanOnly();
+      while (const auto s = scan->Next()) {
+        if (s->windowed) five_axis.push_back(s->five_axis);
+      }
+    }
     {
       GcodeReader reader(file_);
       const auto all = build(reader);
-      while (all->Next()) {
+      all->SetWindowedFiveAxis(five_axis);
+      while (const auto s = all->Next()) {
+        if (s->windowed) static_cast<const geometry::G1Path&>(*s->path).Check();
       }
     }
     reader_ = std::make_unique<GcodeReader>(file_);
     segments_ = build(*reader_);
+    segments_->SetWindowedFiveAxis(std::move(five_axis));
   }
   std::optional<StreamSegment> operator()() {
     std::optional<GcodeSegment> s = segments_->Next();

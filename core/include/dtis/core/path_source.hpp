@@ -60,8 +60,20 @@ class PathSource {
   virtual PathSample At(const PathState& from, double s) const = 0;
 
   // Slow points sorted by arc length (none by default: the interpolator then finds every slow
-  // place by itself, through its exact axis checks and back-off).
+  // place by itself, through its exact axis checks and back-off). A source built as the
+  // interpolator advances returns those it holds: every one before the arc length last given to
+  // Reach, none before the one last given to Release.
   virtual std::span<const SlowPoint> SlowPoints() const { return {}; }
+
+  // The interpolator is about to look ahead to arc length `s`: from now on SlowPoints() holds
+  // every slow point before `s`, and Length() is known if the path ends before `s`. Sources known
+  // whole from the start (curves, surface passes, short G-code chains) have nothing to do; a long
+  // G-code chain builds its corners up to there (geometry/g1_path.hpp).
+  virtual void Reach(double s) const { (void)s; }
+
+  // The interpolator will not step back before arc length `s` again (it has handed those steps
+  // over): a source built as the interpolator advances may drop what lies far enough behind.
+  virtual void Release(double s) const { (void)s; }
 
   // Where a state is, for error messages: "pass 3, u=0.25, v=0.5".
   virtual std::string Describe(const PathState& state) const = 0;

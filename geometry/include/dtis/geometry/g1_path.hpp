@@ -21,8 +21,14 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
+#include <span>
+#include <string>
 #include <vector>
 
 #include "dtis/core/machine.hpp"
@@ -79,15 +85,38 @@ class G1Path final : public PathSource {
          const std::vector<ChainMove>& moves, const Machine& machine,
          const CornerOptions& options = {});
 
+  // A chain too long to hold whole (a CAM finishing program is often one chain of a million
+  // blocks: G1 stepovers join its passes), built as the interpolator reaches it and dropped behind
+  // what it has released, but for `keep_behind_mm`, which the backward look-ahead from the slow
+  // points ahead may still walk. Its poses, slow points, length and errors are the whole chain's,
+  // bit for bit; an error is thrown when the chain is built that far (Check builds it to the end).
+  struct Window {
+    std::vector<ChainMove> first;                    // the chain's first moves
+    std::function<std::optional<ChainMove>()> more;  // the rest, nothing at the chain's end
+    bool five_axis = false;  // whether any move turns the tool axis away from the start axis
+    double keep_behind_mm = 200.0;
+    std::string context;  // put before the messages of errors met while building ("file.ngc")
+  };
+  G1Path(const Eigen::Vector3d& start_tip, const Eigen::Vector3d& start_axis, Window window,
+         const Machine& machine, const CornerOptions& options = {});
+
   PathState Start() const override { return {}; }
-  std::optional<double> Length() const override { return length_; }
+  // A windowed chain knows its length once it is built to its end.
+  std::optional<double> Length() const override;
   PathSample At(const PathState& from, double s) const override;
-  std::span<const SlowPoint> SlowPoints() const override { return slow_; }
+  std::span<const SlowPoint> SlowPoints() const override;
+  void Reach(double s) const override;
+  void Release(double s) const override;
   std::string Describe(const PathState& state) const override;
+
+  // Builds the chain to its end, dropping what lies behind as it goes (a windowed chain): every
+  // error it holds is thrown here. The path is then only good for its length and counts.
+  void Check() const;
 
   Pose PoseAt(double s, int* hint) const;
 
-  // The corners as built, for tests and reports.
+  // The corners as built, for tests and reports: all of them for a chain built whole, the ones
+  // still held for a windowed one.
   struct Corner {
     double s0 = 0.0, s1 = 0.0;  // arc length of the tip where the corner starts and ends
     double l1 = 0.0, l2 = 0.0;  // bottom control lengths (mm)
@@ -95,45 +124,116 @@ class G1Path final : public PathSource {
     int line = 0;  // line of the block that ends at the corner
     std::shared_ptr<const BSplineCurve> bottom, top;
   };
-  const std::vector<Corner>& Corners() const { return corners_; }
+  std::span<const Corner> Corners() const { return corners_; }
+  std::size_t CornersBuilt() const { return corner_base_ + corners_.size(); }
   bool FiveAxis() const { return five_axis_; }
+  bool Windowed() const { return windowed_; }
 
  private:
   struct Piece {
     enum class Kind { kLine, kArc, kCorner } kind = Kind::kLine;
     double s0 = 0.0, length = 0.0;
     int line = 0;
-    Eigen::Vector3d a, d;    // line: start and unit direction; arc: centre and start radius
-    Eigen::Vector3d ta, tb;  // line (5-axis): top point at the start and the end
+    // line: start and unit direction; arc: centre and start radius
+    Eigen::Vector3d a = Eigen::Vector3d::Zero(), d = Eigen::Vector3d::Zero();
+    // line (5-axis): top point at the start and the end
+    Eigen::Vector3d ta = Eigen::Vector3d::Zero(), tb = Eigen::Vector3d::Zero();
     double radius = 0.0, sweep = 0.0, dz = 0.0;  // arc: signed sweep (rad), rise (mm)
-    int corner = -1;
+    long corner = -1;
     double w[6] = {};  // corner (kC2): top parameter = sum w_k t^k, t = tip arc length / length
   };
   // A corner's arc-length maps: the tip's, and the top point's (parametrization 3 only).
   struct CornerMaps {
-    int corner = -1;
+    long corner = -1;
     std::shared_ptr<const ArcLengthMap> bottom, top;
   };
-  // Built when the corner is first evaluated; the latest kCachedCorners stay (a program of a
-  // million corners would otherwise hold a million maps). A map depends on its corner only, so
-  // one built again is the same map. The reference lasts until the next call.
-  const CornerMaps& Maps(int corner) const;
-  void AddLine(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& ta,
-               const Eigen::Vector3d& tb, int line);
-  int Find(double s, int hint) const;
+  // How the corner at a vertex is smoothed.
+  struct CornerPlan {
+    bool corner = false;
+    double l1 = 0.0, l2 = 0.0, feed = INFINITY, length = 0.0;
+    std::shared_ptr<const BSplineCurve> bottom, top;
+    double r_in = 0.0, r_out = 0.0;  // mm of top per mm of tip on either block (5-axis)
+  };
+  // A programmed vertex: the tip, the top point (tip + h axis), the move that ends there.
+  struct Vertex {
+    Eigen::Vector3d p, t, axis;
+    ChainMove move;  // vertex 0: unused
+  };
+  // A slow point on its way to the list the interpolator reads: close ones are thinned first.
+  struct Candidate {
+    double s = 0.0, feed = 0.0;
+    long order = 0;  // corner number: ties in feed go to the earlier corner
+    enum class State : std::uint8_t { kOpen, kKept, kDropped } state = State::kOpen;
+  };
 
-  std::vector<Piece> pieces_;
-  std::vector<Corner> corners_;
-  // Like every PathSource of a program, a G1Path is evaluated by one thread at a time
-  // (interp/program.hpp): its map cache takes no lock.
-  static constexpr std::size_t kCachedCorners = 256;
-  mutable std::vector<CornerMaps> maps_;  // slot: corner index modulo kCachedCorners
-  std::vector<SlowPoint> slow_;
-  double length_ = 0.0;
+  void Init(const Eigen::Vector3d& start_tip, const Eigen::Vector3d& start_axis,
+            const Machine& machine, const CornerOptions& options);
+  // Reads one more move (windowed); false at the chain's end.
+  bool Pull() const;
+  void AddVertex(const ChainMove& move) const;
+  const Vertex& V(std::size_t k) const { return vertices_[k - vertex_base_]; }
+  CornerPlan PlanCorner(std::size_t k) const;
+  // Appends the pieces of the next move and the corner at its end; false when all are built.
+  bool Advance() const;
+  bool AdvanceRead() const;  // Advance once the moves it needs are read
+  // Runs `f`, putting the context before the message of an error it throws.
+  template <typename F>
+  auto InContext(F&& f) const -> decltype(f());
+  void AddLine(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& ta,
+               const Eigen::Vector3d& tb, int line) const;
+  // Slow feeds of the corners built far enough for them, then the thinning of close ones.
+  void Settle() const;
+  void Thin(double frontier) const;
+  // Builds until every slow point before `s` is decided and the pieces cover `s`.
+  void BuildTo(double s) const;
+  const CornerMaps& Maps(long corner) const;
+  long Find(double s, long hint) const;
+  [[gnu::noinline]] void BuildPiecesTo(double s) const;
+  [[noreturn, gnu::noinline]] void FailBehind(double s) const;
+  const Piece& PieceAt(long i) const { return pieces_[static_cast<std::size_t>(i - piece_base_)]; }
+  const Corner& CornerAt(long c) const {
+    return corners_[static_cast<std::size_t>(c - static_cast<long>(corner_base_))];
+  }
+
+  const Machine* machine_ = nullptr;
+  CornerOptions options_;
+  double window_ = 0.0;  // slow points closer than this are thinned (mm)
+  bool windowed_ = false;
   bool five_axis_ = false;
   double h_ = 100.0;
   TopParametrization top_param_ = TopParametrization::kC2;
   Eigen::Vector3d axis_ = Eigen::Vector3d::UnitZ();  // 3-axis: the constant tool axis
+  double keep_behind_ = 0.0;
+  std::string context_;
+
+  // Like every PathSource of a program, a G1Path is evaluated by one thread at a time
+  // (interp/program.hpp): what it builds as it goes and its map cache take no lock.
+  mutable std::vector<ChainMove> first_;  // windowed: moves given, not read yet
+  mutable std::size_t first_next_ = 0;
+  mutable std::function<std::optional<ChainMove>()> more_;
+  mutable bool read_all_ = false;   // every move is in vertices_ (or was)
+  mutable bool built_all_ = false;  // every piece is built
+  mutable std::size_t moves_read_ = 0;
+  mutable int first_line_ = 0;           // line of the first move, for messages
+  mutable std::deque<Vertex> vertices_;  // from vertex_base_: the ones the next pieces need
+  mutable std::size_t vertex_base_ = 0;
+  mutable std::deque<CornerPlan> plans_;  // per vertex, from plan_base_
+  mutable std::size_t plan_base_ = 0;
+  mutable std::size_t next_move_ = 0;  // the move whose pieces are built next
+  mutable std::vector<Piece> pieces_;  // from piece_base_
+  mutable long piece_base_ = 0;
+  mutable std::vector<Corner> corners_;  // from corner_base_
+  mutable std::size_t corner_base_ = 0;
+  mutable std::size_t settled_ = 0;  // corners whose slow feed is known
+  mutable std::deque<Candidate> candidates_;
+  mutable std::size_t emitted_ = 0;  // candidates_ handed to slow_
+  mutable std::vector<SlowPoint> slow_;
+  mutable std::size_t slow_dead_ = 0;  // slow_ entries released
+  mutable double decided_to_ = 0.0;    // every slow point before this is in slow_
+  mutable double released_ = -INFINITY;
+  mutable double length_ = 0.0;
+  static constexpr std::size_t kCachedCorners = 256;
+  mutable std::vector<CornerMaps> maps_;  // slot: corner index modulo kCachedCorners
 };
 
 // The moves that link two poses through LinkWaypoints (curve_path.hpp), as few paths as it takes:

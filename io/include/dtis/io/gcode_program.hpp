@@ -38,6 +38,10 @@ struct GcodeOptions {
   bool blend_rapids = true;
   // Arcs join their neighbours without a stop when their tangents differ by at most this (rad).
   double tangent_rad = 1e-3;
+  // GcodeSegments (dtis stream): a chain of more blocks than this is smoothed as it is planned
+  // and dropped behind the planner (geometry::G1Path::Window), so that memory does not grow with
+  // it; 0: every chain whole. BuildGcodePlan (dtis run) holds every chain whole.
+  std::size_t window_blocks = 4096;
 };
 
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
@@ -68,11 +72,13 @@ struct GcodePlan {
 
 // One segment of a program: a chain of feed moves (or of rapids), smoothed, or a lone rapid.
 struct GcodeSegment {
-  std::unique_ptr<PathSource> path;
+  std::unique_ptr<PathSource> path;  // none when only scanned
   interp::VpopOptions options;
-  std::string name;  // "<file>: lines 12-40", "<file>:41: rapid"
+  std::string name;  // "<file>: lines 12-40", "<file>:41: rapid", "<file>: lines 12- (...)"
   bool rapid = false;
-  int corners = 0;  // smoothed
+  int corners = 0;         // smoothed (not counted for a windowed chain)
+  bool windowed = false;   // more than window_blocks blocks: read as it is planned
+  bool five_axis = false;  // some block turns the tool axis away from where the chain starts
 };
 
 // A program's segments one at a time, each built from the moves it takes when it is asked for:
@@ -88,11 +94,32 @@ class GcodeSegments {
                 const Machine& machine, const interp::VpopOptions& base,
                 const GcodeOptions& options);
   // Nothing after the last segment. Throws dtis::Error "<file>:<line>: ..." as BuildGcodePlan.
+  // A windowed chain reads its moves from here as it is built: the next call first reads what
+  // it left of its chain (nothing, once it was planned or checked to its end).
   std::optional<GcodeSegment> Next();
   int Rapids() const { return rapids_; }  // rapid blocks read so far
 
+  // Windowed chains are smoothed as 3- or 5-axis chains before their moves are read: the
+  // five_axis flags of a scan of the same program, windowed chains in order.
+  void SetWindowedFiveAxis(std::vector<bool> flags) { windowed_five_axis_ = std::move(flags); }
+  // Segments without paths (only name, feed, rapid, windowed and five_axis): for that scan.
+  void ScanOnly() { scan_only_ = true; }
+
  private:
+  // A move as read: the chain move it makes, its feed, whether it is a rapid.
+  struct Read {
+    geometry::ChainMove move;
+    double feed = 0.0;
+    bool rapid = false;
+  };
+  std::optional<Read> ReadMove();
+  bool Joins(const Read& r) const;
+  void Open(const Read& r);
+  void Append(const Read& r);
   GcodeSegment Flush();
+  GcodeSegment FlushWindowed();
+  // The next move of the windowed chain being planned; nothing at its end.
+  std::optional<geometry::ChainMove> PullJoined();
 
   MoveSource next_;
   std::string file_;
@@ -103,12 +130,21 @@ class GcodeSegments {
   double rapid_feed_ = 0.0;
   bool started_ = false, ended_ = false;
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::UnitZ();
-  // The chain being gathered: its moves, where it starts, its feed.
+  // The chain being gathered: its moves (only a window's worth in scan mode or once it is
+  // windowed), where it starts, its feed, its last move and where that started.
   std::vector<geometry::ChainMove> chain_;
+  std::size_t chain_moves_ = 0;
   Eigen::Vector3d chain_tip_ = Eigen::Vector3d::Zero(), chain_axis_ = Eigen::Vector3d::UnitZ();
   double chain_feed_ = 0.0;
   int chain_first_line_ = 0;
-  bool chain_rapid_ = false;
+  bool chain_rapid_ = false, chain_five_axis_ = false;
+  geometry::ChainMove last_;
+  Eigen::Vector3d last_from_ = Eigen::Vector3d::Zero();
+  std::optional<Read> carry_;   // read, the first move of the next chain
+  bool windowed_open_ = false;  // a windowed chain is still reading its moves from here
+  std::vector<bool> windowed_five_axis_;
+  std::size_t windowed_ = 0;  // windowed chains so far
+  bool scan_only_ = false;
   int rapids_ = 0, segments_ = 0;
 };
 
