@@ -107,55 +107,43 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
   const auto release = [&](double speed) {
     return -MaxAccelerationUnderCap(0.0, std::max(speed, 0.0), release_jerk, dt);
   };
+  // The ramp and the rise: a changes by da = -step or +step each period, a_m = a + m da,
+  // v_m = v + dt (m a + da m (m + 1) / 2). `jump` sums the periods 1..k of such a phase in closed
+  // form, k the last one for which `goes` holds, when that is at least kMinJump of them.
+  const auto a_with = [&](double da, long m) { return a + static_cast<double>(m) * da; };
+  const auto v_with = [&](double da, long m) {
+    const double mm = static_cast<double>(m);
+    return v + dt * (mm * a + da * mm * (mm + 1.0) / 2.0);
+  };
+  const auto jump = [&](double da, long most, const auto& goes) {
+    if (most < kMinJump || !goes(kMinJump)) return false;
+    const long k = LastTrue(most, goes);
+    const double kk = static_cast<double>(k);
+    distance +=
+        dt * (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 + da * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
+    v = v_with(da, k);
+    a = a_with(da, k);
+    periods += static_cast<int>(k);
+    return true;
+  };
   while (v != 0.0 || a != 0.0) {
     const double next = StopAcceleration(v, a, jerk, acceleration, dt);
     if (next == a - step && next > -acceleration) {
-      // Ramp: a_m = a - m step, v_m = v + dt (m a - step m (m + 1) / 2).
-      const auto a_at = [&](long m) { return a - static_cast<double>(m) * step; };
-      const auto v_at = [&](long m) {
-        const double mm = static_cast<double>(m);
-        return v + dt * (mm * a - step * mm * (mm + 1.0) / 2.0);
-      };
+      // Ramp: the law brakes harder at the full jerk.
       const auto ramps = [&](long m) {  // period m chooses a_{m-1} - step
-        const double choice = a_at(m);
-        return choice > -acceleration && choice > release(v_at(m - 1)) && v_at(m) > tiny;
+        const double choice = a_with(-step, m);
+        return choice > -acceleration && choice > release(v_with(-step, m - 1)) &&
+               v_with(-step, m) > tiny;
       };
-      const long most = static_cast<long>((a + acceleration) / step);
-      if (most >= kMinJump && ramps(kMinJump)) {
-        const long k = LastTrue(most, ramps);
-        const double kk = static_cast<double>(k);
-        distance +=
-            dt *
-            (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 - step * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
-        v = v_at(k);
-        a = a_at(k);
-        periods += static_cast<int>(k);
-        continue;
-      }
+      if (jump(-step, static_cast<long>((a + acceleration) / step), ramps)) continue;
     } else if (next == a + step && a + step < 0.0) {
       // Rise: braked harder than the release plan needs, the law lets go at the full jerk until
-      // it meets the plan (or v reaches zero first: the state reverses). a_m = a + m step,
-      // v_m = v + dt (m a + step m (m + 1) / 2).
-      const auto a_at = [&](long m) { return a + static_cast<double>(m) * step; };
-      const auto v_at = [&](long m) {
-        const double mm = static_cast<double>(m);
-        return v + dt * (mm * a + step * mm * (mm + 1.0) / 2.0);
-      };
+      // it meets the plan (or v reaches zero first: the state reverses).
       const auto rises = [&](long m) {  // period m chooses a_{m-1} + step
-        return std::max(-acceleration, release(v_at(m - 1))) >= a_at(m) && v_at(m) > tiny;
+        return std::max(-acceleration, release(v_with(step, m - 1))) >= a_with(step, m) &&
+               v_with(step, m) > tiny;
       };
-      const long most = static_cast<long>(-a / step);
-      if (most >= kMinJump && rises(kMinJump)) {
-        const long k = LastTrue(most, rises);
-        const double kk = static_cast<double>(k);
-        distance +=
-            dt *
-            (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 + step * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
-        v = v_at(k);
-        a = a_at(k);
-        periods += static_cast<int>(k);
-        continue;
-      }
+      if (jump(step, static_cast<long>(-a / step), rises)) continue;
     } else if (a == -acceleration && next == -acceleration) {
       // Hold: v_m = v - m A dt.
       const auto v_at = [&](long m) { return v - static_cast<double>(m) * acceleration * dt; };
