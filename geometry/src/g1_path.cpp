@@ -270,7 +270,7 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis, Window win
   Init(start_tip, start_axis, machine, options);
   windowed_ = true;
   five_axis_ = window.five_axis;
-  keep_behind_ = window.keep_behind_mm;
+  if (window.keep_behind_mm > 0.0) keep_behind_ = window.keep_behind_mm;
   context_ = std::move(window.context);
   first_ = std::move(window.first);
   more_ = std::move(window.more);
@@ -292,14 +292,18 @@ void G1Path::Init(const Vector3d& start_tip, const Vector3d& start_axis, const M
   vertices_.push_back({start_tip, start_tip + h_ * axis_, axis_, {}});
   // Where corners come closer than a braking distance from the feed (F sqrt(F / J) with the
   // lowest linear jerk), only the slowest of them is a slow point (Thin).
-  double jerk = INFINITY;
+  double acceleration = INFINITY, jerk = INFINITY;
   const auto axes = machine.Axes();
   for (std::size_t i = 0; i < std::min<std::size_t>(3, axes.size()); ++i) {
+    acceleration = std::min(acceleration, axes[i].amax);
     jerk = std::min(jerk, axes[i].jmax);
   }
-  window_ = std::isfinite(options.feed_mm_s) && std::isfinite(jerk)
-                ? options.feed_mm_s * std::sqrt(options.feed_mm_s / jerk)
-                : 0.0;
+  const double f = options.feed_mm_s;
+  window_ = std::isfinite(f) && std::isfinite(jerk) ? f * std::sqrt(f / jerk) : 0.0;
+  // Behind the planner a windowed chain keeps what its backward look-ahead may walk again: many
+  // times the distance to reach the feed from rest on the slowest linear axis, and a second of
+  // feed, at least 200 mm.
+  keep_behind_ = std::max(200.0, 8.0 * f * (f / acceleration + std::sqrt(f / jerk)) + 2.0 * f);
 }
 
 bool G1Path::Pull() const {

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
@@ -71,11 +72,29 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
   }
 }
 
-GcodeSegment GcodeSegments::Flush() {
+GcodeSegment GcodeSegments::ChainSegment() const {
   GcodeSegment segment;
   segment.rapid = chain_rapid_;
   segment.options = base_;
   segment.options.feed_mm_s = chain_feed_;
+  return segment;
+}
+
+// The chain smoothed from `moves` (all of them, or a Window), its errors naming the file.
+template <typename Moves>
+std::unique_ptr<geometry::G1Path> GcodeSegments::Smooth(Moves&& moves) const {
+  geometry::CornerOptions corners = options_.corners;
+  corners.feed_mm_s = chain_feed_;
+  try {
+    return std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, std::forward<Moves>(moves),
+                                              machine_, corners);
+  } catch (const Error& e) {
+    throw Error("{}: {}", file_, e.what());
+  }
+}
+
+GcodeSegment GcodeSegments::Flush() {
+  GcodeSegment segment = ChainSegment();
   segment.five_axis = chain_five_axis_;
   if (chain_rapid_ && chain_moves_ == 1) {
     // A lone rapid: the straight move it is.
@@ -86,15 +105,7 @@ GcodeSegment GcodeSegments::Flush() {
   } else {
     segment.windowed = options_.window_blocks > 0 && chain_moves_ > options_.window_blocks;
     if (!scan_only_) {
-      geometry::CornerOptions corners = options_.corners;
-      corners.feed_mm_s = chain_feed_;
-      std::unique_ptr<geometry::G1Path> path;
-      try {
-        path =
-            std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, chain_, machine_, corners);
-      } catch (const Error& e) {
-        throw Error("{}: {}", file_, e.what());
-      }
+      std::unique_ptr<geometry::G1Path> path = Smooth(chain_);
       segment.corners = static_cast<int>(path->Corners().size());
       segment.path = std::move(path);
     }
@@ -113,41 +124,20 @@ GcodeSegment GcodeSegments::FlushWindowed() {
     throw Error("{}: internal: a chain longer than {} blocks was not scanned before", file_,
                 options_.window_blocks);
   }
-  GcodeSegment segment;
-  segment.rapid = chain_rapid_;
+  GcodeSegment segment = ChainSegment();
   segment.windowed = true;
   segment.five_axis = windowed_five_axis_[windowed_++];
-  segment.options = base_;
-  segment.options.feed_mm_s = chain_feed_;
   segment.name =
       fmt::format("{}: lines {}-{}", file_, chain_first_line_, chain_rapid_ ? " (rapids)" : "");
-  geometry::CornerOptions corners = options_.corners;
-  corners.feed_mm_s = chain_feed_;
-  // Behind the planner the chain keeps what its backward look-ahead may walk again: many times
-  // the distance to reach the feed from rest on the slowest linear axis, and a second of feed.
-  double acceleration = INFINITY, jerk = INFINITY;
-  const auto axes = machine_.Axes();
-  for (std::size_t i = 0; i < std::min<std::size_t>(3, axes.size()); ++i) {
-    acceleration = std::min(acceleration, axes[i].amax);
-    jerk = std::min(jerk, axes[i].jmax);
-  }
-  const double f = chain_feed_;
   geometry::G1Path::Window window;
   window.first = std::move(chain_);
   window.more = [this] { return PullJoined(); };
   window.five_axis = segment.five_axis;
-  window.keep_behind_mm =
-      std::max(window.keep_behind_mm, 8.0 * f * (f / acceleration + std::sqrt(f / jerk)) + 2.0 * f);
   window.context = file_;
   chain_.clear();
   chain_moves_ = 0;
   windowed_open_ = true;
-  try {
-    segment.path = std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, std::move(window),
-                                                      machine_, corners);
-  } catch (const Error& e) {
-    throw Error("{}: {}", file_, e.what());
-  }
+  segment.path = Smooth(std::move(window));
   return segment;
 }
 

@@ -94,7 +94,9 @@ class G1Path final : public PathSource {
     std::vector<ChainMove> first;                    // the chain's first moves
     std::function<std::optional<ChainMove>()> more;  // the rest, nothing at the chain's end
     bool five_axis = false;  // whether any move turns the tool axis away from the start axis
-    double keep_behind_mm = 200.0;
+    // mm; 0: 8 times the distance to reach the feed from rest on the slowest linear axis plus a
+    // second of feed, at least 200 mm
+    double keep_behind_mm = 0.0;
     std::string context;  // put before the messages of errors met while building ("file.ngc")
   };
   G1Path(const Eigen::Vector3d& start_tip, const Eigen::Vector3d& start_axis, Window window,

@@ -116,6 +116,9 @@ class GcodeSegments {
   bool Joins(const Read& r) const;
   void Open(const Read& r);
   void Append(const Read& r);
+  GcodeSegment ChainSegment() const;  // the chain's, without its path
+  template <typename Moves>
+  std::unique_ptr<geometry::G1Path> Smooth(Moves&& moves) const;
   GcodeSegment Flush();
   GcodeSegment FlushWindowed();
   // The next move of the windowed chain being planned; nothing at its end.
