@@ -11,6 +11,8 @@
 
 #include "dtis/geometry/curve_path.hpp"
 #include "dtis/interp/verifier.hpp"
+#include "dtis/io/gcode.hpp"
+#include "dtis/io/gcode_program.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -242,6 +244,52 @@ TEST(Vpop, FeedNeverExceedsTheProgrammedFeed) {
   // Within 15 % of the minimum-time reference 2.260 s (REFERENCES.md); the gap is reported.
   EXPECT_LT(p.summary.motion_time_s, 2.260 * 1.15);
   EXPECT_GT(p.summary.motion_time_s, 2.260 - 0.01);
+}
+
+// The brake tests of a back-off continue the law's last run that got through instead of
+// recomputing it (a fifth of the work on the trident, the lock and the open pocket): the law is
+// a function of the three steps it starts from, so not one setpoint may change.
+TEST(Vpop, BrakeTestsThatContinueTheLastRunChangeNoSetpoint) {
+  const auto same = [](const PathSource& path, const Machine& machine,
+                       const interp::VpopOptions& options, const std::string& name) {
+    interp::VpopOptions fresh = options;
+    fresh.reuse_brake_runs = false;
+    const Planned reused = Plan(path, machine, options);
+    const Planned recomputed = Plan(path, machine, fresh);
+    EXPECT_EQ(reused.summary.back_offs, recomputed.summary.back_offs) << name;
+    EXPECT_EQ(reused.summary.brake_tests, recomputed.summary.brake_tests) << name;
+    EXPECT_LE(reused.summary.evaluations, recomputed.summary.evaluations) << name;
+    EXPECT_EQ(reused.points.size(), recomputed.points.size()) << name;
+    long differs = -1;
+    for (std::size_t k = 0; k < std::min(reused.points.size(), recomputed.points.size()); ++k) {
+      const auto& a = reused.points[k];
+      const auto& b = recomputed.points[k];
+      if (!(a.s == b.s && a.q == b.q && a.limiter.kind == b.limiter.kind &&
+            a.limiter.axis == b.limiter.axis)) {
+        differs = static_cast<long>(k);
+        break;
+      }
+    }
+    EXPECT_EQ(differs, -1) << name << ": the first setpoint that differs";
+    return std::pair(reused.summary, recomputed.summary);
+  };
+  const auto trident = io::LoadJob(test::Source("samples/jobs/trident.toml"));
+  const auto xyz = kinematics::LoadMachineFile(trident.machine_file);
+  const auto [reused, recomputed] = same(*io::BuildPath(trident), *xyz, trident.vpop, "trident");
+  ASSERT_GT(reused.back_offs, 1000) << "the test needs back-offs";
+  EXPECT_LT(reused.evaluations, recomputed.evaluations);
+  // The lock's contours: smoothed G1 chains with slow points, one plan each.
+  const auto lock = io::LoadJob(test::Source("samples/jobs/lock.toml"));
+  const auto plan = io::BuildGcodePlan(io::ReadGcode(lock.path.gcode_file),
+                                       *kinematics::LoadMachineFile(lock.machine_file), lock.vpop,
+                                       lock.path.gcode);
+  long back_offs = 0;
+  for (std::size_t k = 0; k < plan.segments.size(); ++k) {
+    back_offs += same(*plan.segments[k].path, *xyz, plan.segments[k].options,
+                      "lock " + plan.segments[k].name)
+                     .first.back_offs;
+  }
+  EXPECT_GT(back_offs, 1000);
 }
 
 }  // namespace

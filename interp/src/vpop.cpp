@@ -305,6 +305,40 @@ class Planner {
   std::vector<Step> stop_, trial_stop_;
   long stop_from_ = -1;
   VpopSummary summary_;
+  // The brake law's steps from step `from` on (the law is a function of the three steps it
+  // starts from): the last run that got through, and the one being tried.
+  struct BrakeRun {
+    long from = -1;
+    Step start[3];                 // steps from - 2 .. from when the run was made
+    std::optional<double> length;  // the path length known then (it bounds the law's steps)
+    std::vector<Step> steps;       // steps from + 1, from + 2, ...
+    bool failed = false;           // the law found no step after the last one
+    void Start(const Planner& planner, long m) {
+      from = m;
+      for (int k = 0; k < 3; ++k) start[k] = planner.At(m - 2 + k);
+      length = planner.length_;
+      steps.clear();
+      failed = false;
+    }
+    // Whether the planner's steps up to m are this run's (so the law from m continues it).
+    bool Continues(const Planner& planner, long m) const {
+      if (from < 0 || m < from || m - from > static_cast<long>(steps.size()) ||
+          length != planner.length_) {
+        return false;
+      }
+      for (long g = from - 2; g <= m; ++g) {
+        const Step& was =
+            g <= from ? start[g - from + 2] : steps[static_cast<std::size_t>(g - from - 1)];
+        if (!Same(planner.At(g), was)) return false;
+      }
+      return true;
+    }
+  };
+  static bool Same(const Step& a, const Step& b) {
+    return a.s == b.s && a.q == b.q && a.state.u == b.state.u && a.state.v == b.state.v &&
+           a.state.w == b.state.w && a.state.piece == b.state.piece;
+  }
+  BrakeRun last_run_, scratch_run_;
   // Where the planner last came back to rest with no step forward kept, and how many times in a
   // row: each time, the next greedy step from there is halved (Produce).
   double last_stuck_s_ = -1.0;
@@ -831,23 +865,45 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
 bool Planner::Brake(long m, Step* first, double pass_s, long margin, std::vector<Step>* record) {
   ++summary_.brake_tests;
   if (record) record->clear();
+  // Continue the last run that got through when it started at or before m and the steps since
+  // are its own (the back-off keeps the first step of its run: the next test starts there).
+  BrakeRun* run = &scratch_run_;
+  long p = 0;  // position in run->steps of the step after m
+  if (o_.reuse_brake_runs && last_run_.Continues(*this, m)) {
+    run = &last_run_;
+    p = m - last_run_.from;
+  } else {
+    scratch_run_.Start(*this, m);
+  }
+  const auto through = [&] {
+    if (run == &scratch_run_) std::swap(last_run_, scratch_run_);
+    return true;
+  };
   Step ring[3] = {At(m - 2), At(m - 1), At(m)};
   int newest = 2;
   long beyond = 0;
   const long max_steps = 10000000;
-  for (long k = 0; k < max_steps; ++k) {
+  for (long k = 0; k < max_steps; ++k, ++p) {
     const History h{&ring[(newest + 1) % 3], &ring[(newest + 2) % 3], &ring[newest]};
     if (AtRest(h)) {
       if (k == 0) {  // already at rest: the brake holds still
         *first = *h.p0;
         first->limiter = {Limiter::kRest, -1};
       }
-      return true;
+      return through();
     }
-    if (h.p0->s > pass_s && ++beyond > margin) return true;
+    if (h.p0->s > pass_s && ++beyond > margin) return through();
     Step next;
-    if (!Produce(h, Mode::kBrake, &next)) return false;
-    next.limiter = {Limiter::kBackOff, -1};
+    if (p < static_cast<long>(run->steps.size())) {
+      next = run->steps[static_cast<std::size_t>(p)];
+    } else {
+      if (run->failed || !Produce(h, Mode::kBrake, &next)) {
+        run->failed = true;
+        return false;
+      }
+      next.limiter = {Limiter::kBackOff, -1};
+      run->steps.push_back(next);
+    }
     if (k == 0) *first = next;
     if (record) record->push_back(next);
     newest = (newest + 1) % 3;

@@ -55,6 +55,12 @@ struct VpopOptions {
   // lie on the path behind it, at arc lengths -2 F dt and -F dt). Used by the look-ahead's backward
   // plans; a path planned this way does not start at rest.
   double start_feed_mm_s = 0.0;
+  // A back-off's brake tests continue the brake law's last run that got through where they start
+  // on it (the law depends only on the three steps it starts from). Off: every test recomputes
+  // the law, with more evaluations and the same setpoints where the source's poses depend only on
+  // the state and arc length asked (curves, G-code; a surface pass's warm-start cache makes its
+  // last bits depend on the order of the solves). For tests and measurements.
+  bool reuse_brake_runs = true;
 
   bool IsValid(std::string* why) const;
 };
