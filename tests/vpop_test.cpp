@@ -278,14 +278,15 @@ TEST(Vpop, BrakeTestsThatContinueTheLastRunChangeNoSetpoint) {
   const auto [reused, recomputed] = same(*io::BuildPath(trident), *xyz, trident.vpop, "trident");
   ASSERT_GT(reused.back_offs, 1000) << "the test needs back-offs";
   EXPECT_LT(reused.evaluations, recomputed.evaluations);
-  // The lock's contours: smoothed G1 chains with slow points, one plan each.
+  // The lock's contours: smoothed G1 chains with slow points, one plan each. The paths keep the
+  // machine they were smoothed for: it lives as long as they do.
   const auto lock = io::LoadJob(test::Source("samples/jobs/lock.toml"));
-  const auto plan = io::BuildGcodePlan(io::ReadGcode(lock.path.gcode_file),
-                                       *kinematics::LoadMachineFile(lock.machine_file), lock.vpop,
-                                       lock.path.gcode);
+  const auto lock_machine = kinematics::LoadMachineFile(lock.machine_file);
+  const auto program = io::ReadGcode(lock.path.gcode_file);
+  const auto plan = io::BuildGcodePlan(program, *lock_machine, lock.vpop, lock.path.gcode);
   long back_offs = 0;
   for (std::size_t k = 0; k < plan.segments.size(); ++k) {
-    back_offs += same(*plan.segments[k].path, *xyz, plan.segments[k].options,
+    back_offs += same(*plan.segments[k].path, *lock_machine, plan.segments[k].options,
                       "lock " + plan.segments[k].name)
                      .first.back_offs;
   }
