@@ -106,13 +106,14 @@ VerifyReport StreamVerifier::Report() const {
     c.v_ratio = c.v / a.vmax;
     c.a_ratio = c.a / a.amax;
     c.j_ratio = c.j / a.jmax;
-    const std::pair<double, std::string> worst[] = {
-        {c.v_ratio,
-         fmt::format("{} velocity at t = {} s", c.name, static_cast<double>(c.v_row) * dt_ + t0_)},
-        {c.a_ratio, fmt::format("{} acceleration at t = {} s", c.name,
-                                static_cast<double>(c.a_row) * dt_ + t0_)},
-        {c.j_ratio,
-         fmt::format("{} jerk at t = {} s", c.name, static_cast<double>(c.j_row) * dt_ + t0_)}};
+    // Row times to 12 digits: row * dt carries the period's binary rounding (0.41100000000000003).
+    const auto at = [&](const char* what, long row) {
+      return fmt::format("{} {} at t = {:.12g} s", c.name, what,
+                         static_cast<double>(row) * dt_ + t0_);
+    };
+    const std::pair<double, std::string> worst[] = {{c.v_ratio, at("velocity", c.v_row)},
+                                                    {c.a_ratio, at("acceleration", c.a_row)},
+                                                    {c.j_ratio, at("jerk", c.j_row)}};
     for (const auto& [ratio, what] : worst) {
       if (ratio > r.worst_ratio || r.worst.empty()) r.worst_ratio = ratio, r.worst = what;
     }
