@@ -100,3 +100,49 @@ TEST(MotionLaw, StopDistanceSumsPhasesLikeTheSimulation) {
 
 }  // namespace
 }  // namespace dtis::interp
+
+namespace dtis::interp {
+namespace {
+
+// StopReach is the distance the look-ahead plans a stop or a slow-down with. A motion that the law
+// cannot bring to rest (it brakes too hard to release in time) must not count as stopping short
+// of the end of the path: this state, from the last periods of the 10-degree-tilt sample's pass,
+// had 6.8e-5 mm left and was taken for one that stops in time.
+TEST(MotionLaw, StopReachCountsAStopThatCannotComeToRest) {
+  const double dt = 1e-3, J = 640.0, A = 27.6, v = 0.13619, a = -13.535;
+  const StopDistance sim = StopDistanceBySimulation(v, a, J, A, dt);
+  ASSERT_TRUE(sim.reverses);
+  const double reach = StopReach(v, a, J, A, dt, 0.0);
+  EXPECT_NEAR(reach, sim.distance, 1e-12);
+  EXPECT_GT(reach, 10.0 * 6.8e-5);
+  // Above a slow point's feed the same state passes the point below that feed: no constraint.
+  EXPECT_EQ(StopReach(v, a, J, A, dt, 0.05), -std::numeric_limits<double>::infinity());
+  // Below the feed, or just reaching it: nothing to brake for.
+  EXPECT_EQ(StopReach(v, 0.0, J, A, dt, 2.0 * v), -std::numeric_limits<double>::infinity());
+}
+
+TEST(MotionLaw, StopReachIsTheStopDistanceOfTheExcess) {
+  std::mt19937_64 rng(test::g_seed + 13);
+  std::uniform_real_distribution<double> frac(0.0, 1.0);
+  const double dt = 1e-3;
+  for (long c = 0; c < test::g_count; ++c) {
+    const double J = std::pow(10.0, 2.0 + 3.0 * frac(rng)),
+                 A = std::pow(10.0, 1.0 + 3.0 * frac(rng));
+    const double feed = frac(rng) < 0.3 ? 0.0 : 100.0 * frac(rng);
+    const double v = feed + 100.0 * frac(rng), a = (frac(rng) - 0.5) * A;
+    const StopDistance sim = StopDistanceBySimulation(v - feed, a, J, A, dt);
+    if (sim.reverses || !std::isfinite(sim.distance)) continue;
+    const double reach = StopReach(v, a, J, A, dt, feed);
+    if (v - feed + ReleaseGain(a, J, dt) <= 0.0) {
+      EXPECT_EQ(reach, -std::numeric_limits<double>::infinity()) << "case " << c;
+      continue;
+    }
+    const double expected = sim.distance + feed * sim.periods * dt;
+    // The periods of the closed-form sum may differ from the simulation's by one (its last
+    // partial period), at a feed of up to 100 mm/s.
+    EXPECT_NEAR(reach, expected, 1e-10 * (1.0 + expected) + feed * dt) << "case " << c;
+  }
+}
+
+}  // namespace
+}  // namespace dtis::interp

@@ -193,4 +193,14 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
   return {distance, periods};
 }
 
+double StopReach(double v, double a, double jerk, double acceleration, double dt, double feed) {
+  const double excess = v - feed;
+  if (v < 0.0 || excess + ReleaseGain(a, jerk, dt) <= 0.0) {
+    return -std::numeric_limits<double>::infinity();
+  }
+  const StopDistance stop = StopDistanceFrom(std::max(excess, 0.0), a, jerk, acceleration, dt);
+  if (stop.reverses && feed > 0.0) return -std::numeric_limits<double>::infinity();
+  return stop.distance + feed * stop.periods * dt;
+}
+
 }  // namespace dtis::interp

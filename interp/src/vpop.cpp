@@ -522,18 +522,14 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
   const double release_jerk = jerk * kReleaseJerkFraction;
+  // Planned with the softer law, so that following it leaves headroom for rounding. Monotone in
+  // a: more braking, less reach. A stop to the end of the path that the law cannot bring to rest
+  // reaches where its velocity turns (StopReach): counted short of the end instead, it let the
+  // motion arrive there still braking, and back-offs replaced the approach period by period.
   const auto reach = [&](double a) {
     const double v = v0 + a * dt_;
-    const double excess = v - feed;
-    if (v < 0.0 || excess + ReleaseGain(a, release_jerk, dt_) <= 0.0) {
-      return -std::numeric_limits<double>::infinity();  // never above the feed: no constraint
-    }
-    // Planned with the softer law, so that following it leaves headroom for rounding. A state
-    // braked too hard counts as short of the point (monotone in a: more braking, less reach).
-    const StopDistance stop = StopDistanceFrom(std::max(excess, 0.0), a, release_jerk,
-                                               acceleration * kReleaseJerkFraction, dt_);
-    return stop.reverses ? -std::numeric_limits<double>::infinity()
-                         : s0 + v * dt_ + stop.distance + feed * stop.periods * dt_;
+    return s0 + v * dt_ +
+           StopReach(v, a, release_jerk, acceleration * kReleaseJerkFraction, dt_, feed);
   };
   double hi = a_hi, f_hi = reach(hi) - at;
   if (!(f_hi > 0.0)) return a_hi;

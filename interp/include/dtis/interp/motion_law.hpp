@@ -42,4 +42,13 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
 StopDistance StopDistanceBySimulation(double v, double a, double jerk, double acceleration,
                                       double dt);
 
+// How far a motion with feed v and acceleration a (one period old) runs before the stop law, run
+// on its excess over `feed`, has brought it down to `feed` with zero acceleration: the stop
+// distance of the excess plus `feed` for each of its periods. Minus infinity when the motion is
+// not above the feed at all (nothing to brake for). A state braked so hard that the excess would
+// turn negative (StopDistance::reverses) passes a point of feed > 0 below that feed, which is
+// allowed: minus infinity too. At feed 0 it is a stop the law cannot bring to rest, and it runs
+// as far as the law takes it before the velocity turns.
+double StopReach(double v, double a, double jerk, double acceleration, double dt, double feed);
+
 }  // namespace dtis::interp
