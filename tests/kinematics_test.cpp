@@ -193,6 +193,20 @@ jerk = 1
                      "axes.Z.velocity': expected a finite number");
   ExpectMachineError(head + units + axes + z_ok + "speed = 3\n", "unknown key 'axes.Z.speed'");
   ExpectMachineError(head + units + axes, "missing axis table [axes.Z]");
+  // An XYZ machine needs no angle or rotary units; when it states them they are checked, and a
+  // machine with rotary axes must state them.
+  const std::string linear_units =
+      "[units]\nlength = \"mm\"\nlinear_velocity = \"mm/s\"\n"
+      "linear_acceleration = \"mm/s^2\"\nlinear_jerk = \"mm/s^3\"\n";
+  EXPECT_NO_THROW(kinematics::ParseMachine(head + linear_units + axes + z_ok, "m.toml"));
+  ExpectMachineError(head + linear_units + "rotary_jerk = \"deg/h\"\n" + axes + z_ok,
+                     "key 'units.rotary_jerk': 'deg/h' is not one of");
+  const std::string rotary =
+      "[axes.A]\ntravel = [-90, 90]\nvelocity = 1\nacceleration = 1\njerk = 1\n"
+      "[axes.C]\ntravel = \"continuous\"\nvelocity = 1\nacceleration = 1\njerk = 1\n"
+      "[pivot]\na_axis = [0, 0, 0]\nc_axis = [0, 0, 0]\n";
+  ExpectMachineError("name = \"m\"\nkinematics = \"xyzac\"\n" + linear_units + axes + z_ok + rotary,
+                     "missing key 'units.angle'");
   ExpectMachineError("name = \"m\"\nkinematics = \"hexapod\"\n",
                      "key 'kinematics': 'hexapod' is not one of 'xyz', 'xyzac'");
   ExpectMachineError("name = \"m\"\nkinematics = [\n", "m.toml:2:");

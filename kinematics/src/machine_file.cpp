@@ -25,10 +25,13 @@ double Unit(TomlTable& t, std::string_view key, const std::map<std::string, doub
   return factors.at(t.Choice(key, names));
 }
 
-Units ReadUnits(TomlTable& t) {
+// The angle and rotary units are required only when the machine has rotary axes; an XYZ machine
+// may state them (they are checked) or leave them out.
+Units ReadUnits(TomlTable& t, bool rotary_axes) {
   Units u;
   u.length = Unit(t, "length", {{"mm", 1.0}, {"m", 1000.0}, {"in", 25.4}});
-  u.angle = Unit(t, "angle", {{"deg", kPi / 180.0}, {"rad", 1.0}});
+  const auto needed = [&](std::string_view key) { return rotary_axes || t.Has(key); };
+  if (needed("angle")) u.angle = Unit(t, "angle", {{"deg", kPi / 180.0}, {"rad", 1.0}});
   u.linear_velocity = Unit(t, "linear_velocity",
                            {{"mm/s", 1.0},
                             {"mm/min", 1.0 / 60.0},
@@ -37,17 +40,23 @@ Units ReadUnits(TomlTable& t) {
                             {"in/min", 25.4 / 60.0}});
   u.linear_acceleration = Unit(t, "linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}});
   u.linear_jerk = Unit(t, "linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}});
-  u.rotary_velocity = Unit(t, "rotary_velocity",
-                           {{"rad/s", 1.0},
-                            {"deg/s", kPi / 180.0},
-                            {"rpm", 2.0 * kPi / 60.0},
-                            {"rev/s", 2.0 * kPi},
-                            {"deg/min", kPi / 180.0 / 60.0}});
-  u.rotary_acceleration =
-      Unit(t, "rotary_acceleration",
-           {{"rad/s^2", 1.0}, {"deg/s^2", kPi / 180.0}, {"rev/s^2", 2.0 * kPi}});
-  u.rotary_jerk =
-      Unit(t, "rotary_jerk", {{"rad/s^3", 1.0}, {"deg/s^3", kPi / 180.0}, {"rev/s^3", 2.0 * kPi}});
+  if (needed("rotary_velocity")) {
+    u.rotary_velocity = Unit(t, "rotary_velocity",
+                             {{"rad/s", 1.0},
+                              {"deg/s", kPi / 180.0},
+                              {"rpm", 2.0 * kPi / 60.0},
+                              {"rev/s", 2.0 * kPi},
+                              {"deg/min", kPi / 180.0 / 60.0}});
+  }
+  if (needed("rotary_acceleration")) {
+    u.rotary_acceleration =
+        Unit(t, "rotary_acceleration",
+             {{"rad/s^2", 1.0}, {"deg/s^2", kPi / 180.0}, {"rev/s^2", 2.0 * kPi}});
+  }
+  if (needed("rotary_jerk")) {
+    u.rotary_jerk = Unit(t, "rotary_jerk",
+                         {{"rad/s^3", 1.0}, {"deg/s^3", kPi / 180.0}, {"rev/s^3", 2.0 * kPi}});
+  }
   t.RejectUnknown();
   return u;
 }
@@ -88,7 +97,7 @@ std::unique_ptr<Machine> ReadMachine(TomlTable& root) {
   const std::string name = root.String("name");
   const std::string kinematics = root.Choice("kinematics", {"xyz", "xyzac"});
   TomlTable units_table = root.Table("units");
-  const Units units = ReadUnits(units_table);
+  const Units units = ReadUnits(units_table, kinematics != "xyz");
   TomlTable axes_table = root.Table("axes");
   std::vector<Axis> axes;
   for (const char* n : {"X", "Y", "Z"}) axes.push_back(ReadAxis(axes_table, n, false, units));
