@@ -307,8 +307,10 @@ std::vector<geometry::ChainMove> RandomWalk(int blocks, unsigned seed) {
 geometry::G1Path WindowedChain(const Vector3d& start_tip, const Vector3d& start_axis,
                                const std::vector<geometry::ChainMove>& moves,
                                const Machine& machine, const geometry::CornerOptions& o,
-                               std::size_t first, bool five_axis, double keep_behind_mm = 200.0) {
+                               std::size_t first, bool five_axis, double keep_behind_mm = 200.0,
+                               std::string behind_remedy = {}) {
   geometry::G1Path::Window w;
+  w.behind_remedy = std::move(behind_remedy);
   w.first.assign(moves.begin(), moves.begin() + static_cast<std::ptrdiff_t>(first));
   w.more = [&moves, next = first]() mutable -> std::optional<geometry::ChainMove> {
     if (next == moves.size()) return std::nullopt;
@@ -370,7 +372,9 @@ void ExpectSamePlan(const geometry::G1Path& whole, const geometry::G1Path& windo
   for (std::size_t k = 0; k < a.points.size(); ++k) {
     ASSERT_EQ(a.points[k].q, b.points[k].q) << "setpoint " << k;
   }
-  if (dropped) EXPECT_LT(windowed.Corners().size(), windowed.CornersBuilt());
+  if (dropped) {
+    EXPECT_LT(windowed.Corners().size(), windowed.CornersBuilt());
+  }
 }
 
 TEST(G1Path, WindowedChainIsTheWholeChainBitForBit) {
@@ -465,12 +469,13 @@ TEST(G1Path, WindowedChainSaysWhatItNoLongerHoldsAndChecksItsMoves) {
   geometry::CornerOptions o;
   o.feed_mm_s = 100.0;
   const auto windowed =
-      WindowedChain({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o, 1, false, 10.0);
+      WindowedChain({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, o, 1, false, 10.0, "do this");
   windowed.Reach(200.0);
   windowed.Release(150.0);
   EXPECT_NO_THROW(windowed.At({}, 141.0));
   test::ExpectError([&] { windowed.At({}, 20.0); },
                     "arc length 20 mm lies behind the part of the chain still held");
+  test::ExpectError([&] { windowed.At({}, 20.0); }, "than the chain keeps; do this");
   auto bad = moves;
   bad[450].tip = bad[448].tip;  // turns back at 449
   const auto checked =

@@ -272,6 +272,7 @@ G1Path::G1Path(const Vector3d& start_tip, const Vector3d& start_axis, Window win
   five_axis_ = window.five_axis;
   if (window.keep_behind_mm > 0.0) keep_behind_ = window.keep_behind_mm;
   context_ = std::move(window.context);
+  behind_remedy_ = std::move(window.behind_remedy);
   first_ = std::move(window.first);
   more_ = std::move(window.more);
   plans_.emplace_back();  // vertex 0: no corner
@@ -733,8 +734,8 @@ void G1Path::BuildPiecesTo(double s) const {
 void G1Path::FailBehind(double s) const {
   throw Error(
       "arc length {} mm lies behind the part of the chain still held (from {} mm): the planner "
-      "stepped back further than the chain keeps",
-      s, pieces_.front().s0);
+      "stepped back further than the chain keeps{}{}",
+      s, pieces_.front().s0, behind_remedy_.empty() ? "" : "; ", behind_remedy_);
 }
 
 long G1Path::Find(double s, long hint) const {

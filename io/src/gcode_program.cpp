@@ -134,6 +134,10 @@ GcodeSegment GcodeSegments::FlushWindowed() {
   window.more = [this] { return PullJoined(); };
   window.five_axis = segment.five_axis;
   window.context = file_;
+  window.behind_remedy = fmt::format(
+      "hold chains whole with window_blocks = 0 in the job's [path] (this chain has more than {} "
+      "blocks), and please report it with the program",
+      options_.window_blocks);
   chain_.clear();
   chain_moves_ = 0;
   windowed_open_ = true;

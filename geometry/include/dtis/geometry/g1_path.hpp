@@ -98,6 +98,9 @@ class G1Path final : public PathSource {
     // second of feed, at least 200 mm
     double keep_behind_mm = 0.0;
     std::string context;  // put before the messages of errors met while building ("file.ngc")
+    // What the user can do when the planner steps back further than the chain keeps (the reader
+    // of the chain knows its options: "hold the chain whole with window_blocks = 0").
+    std::string behind_remedy;
   };
   G1Path(const Eigen::Vector3d& start_tip, const Eigen::Vector3d& start_axis, Window window,
          const Machine& machine, const CornerOptions& options = {});
@@ -206,6 +209,7 @@ class G1Path final : public PathSource {
   TopParametrization top_param_ = TopParametrization::kC2;
   Eigen::Vector3d axis_ = Eigen::Vector3d::UnitZ();  // 3-axis: the constant tool axis
   double keep_behind_ = 0.0;
+  std::string behind_remedy_;
   std::string context_;
 
   // Like every PathSource of a program, a G1Path is evaluated by one thread at a time
