@@ -151,9 +151,9 @@ TEST(Vpop, SteadyFeedOnACircleIsTheProgrammedFeed) {
 
 // KNOWN TO FAIL (issue 2, open): where an axis limit binds, VPOp's bang-bang steps make the feed
 // oscillate. Measured at seed-independent settings: jerk-bound (F 400, A 2500, J 5000) slowest
-// 128.2 mm/s against 126.0 (+1.8 %), acceleration-bound (F 400, A 300, J 50000) slowest 72.4
-// against 77.5 (-6.5 %), and about 75 s of compute per case. Run with
-// --gtest_also_run_disabled_tests.
+// 128.2 mm/s against 126.0 (+1.8 %), acceleration-bound (F 400, A 300, J 50000) slowest 74.5
+// against 77.5 (-3.8 %), and 16 s of compute for both (2026-11-22: 43 799 and 17 269 back-offs
+// for 2.3 and 3.5 s of motion). Run with --gtest_also_run_disabled_tests.
 TEST(Vpop, DISABLED_SteadyFeedOnACircleIsTheAxisClosedForm) {
   ExpectSteadyFeed({400.0, 2500.0, 5000.0});
   ExpectSteadyFeed({400.0, 300.0, 50000.0});
