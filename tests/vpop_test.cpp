@@ -149,14 +149,22 @@ TEST(Vpop, SteadyFeedOnACircleIsTheProgrammedFeed) {
   ExpectSteadyFeed({100.0, 2500.0, 5000.0});
 }
 
-// KNOWN TO FAIL (issue 2, open): where an axis limit binds, VPOp's bang-bang steps make the feed
-// oscillate. Measured at seed-independent settings: jerk-bound (F 400, A 2500, J 5000) slowest
-// 128.2 mm/s against 126.0 (+1.8 %), acceleration-bound (F 400, A 300, J 50000) slowest 74.5
-// against 77.5 (-3.8 %), and 16 s of compute for both (2026-11-22: 43 799 and 17 269 back-offs
-// for 2.3 and 3.5 s of motion). Run with --gtest_also_run_disabled_tests.
-TEST(Vpop, DISABLED_SteadyFeedOnACircleIsTheAxisClosedForm) {
-  ExpectSteadyFeed({400.0, 2500.0, 5000.0});
+// Where the axis acceleration binds, the slowest feed of a steady turn is sqrt(A R) (each axis
+// carries the whole centripetal acceleration twice a turn, with no tangential part there). Before
+// the laws took their jerk from the axis jerk intervals alone, it dipped to 74.5 mm/s (-3.8 %)
+// with 17 269 back-offs; now 1 253 (0.3 s of compute).
+TEST(Vpop, SteadyFeedOnACircleIsTheAccelerationClosedForm) {
   ExpectSteadyFeed({400.0, 300.0, 50000.0});
+}
+
+// KNOWN TO FAIL (issue 2, open): where the axis jerk binds, VPOp's bang-bang steps make the feed
+// oscillate, and its slowest is above the closed form, which assumes a constant feed (the terms
+// 3 q_ss v a and q_s j of the axis jerk let a varying feed pass the point where an axis carries
+// the whole q_sss v^3 faster). Measured (F 400, A 2500, J 5000): slowest 128.2 mm/s against 126.0
+// (+1.8 %), 43 799 back-offs for 2.3 s of motion, 14 s of compute. Run with
+// --gtest_also_run_disabled_tests.
+TEST(Vpop, DISABLED_SteadyFeedOnACircleIsTheJerkClosedForm) {
+  ExpectSteadyFeed({400.0, 2500.0, 5000.0});
 }
 
 // Random curves, limits, feeds and periods; `smooth` keeps the control polygon from turning more
