@@ -29,6 +29,16 @@ inline Vector3d Unit(const Vector3d& v) {
   return z > 0.0 ? Vector3d(v / std::sqrt(z)) : v;
 }
 
+// Erases the first n elements of v when they are more than 64 and more than half of it (a windowed
+// chain drops what lies behind in batches, so that its storage stays contiguous for Find).
+// Returns how many went.
+template <typename T>
+std::size_t DropFront(std::vector<T>& v, std::size_t n) {
+  if (n <= 64 || 2 * n <= v.size()) return 0;
+  v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n));
+  return n;
+}
+
 // The corner curve: five control points on the two blocks around `p2` (Eq. 1).
 BSplineCurve CornerCurve(const Vector3d& p2, const Vector3d& d_in, const Vector3d& d_out,
                          double l1_in, double l2_in, double l1_out, double l2_out) {
@@ -677,30 +687,20 @@ void G1Path::Release(double s) const {
   if (!windowed_ || !(s > released_)) return;
   released_ = s;
   const double keep_from = s - keep_behind_;
-  // What lies wholly behind keep_from goes, in batches (the storage stays contiguous for Find).
+  // What lies wholly behind keep_from goes, in batches (DropFront).
   const auto pieces_behind = static_cast<std::size_t>(
       std::partition_point(pieces_.begin(), pieces_.end() - 1,
                            [&](const Piece& p) { return p.s0 + p.length < keep_from; }) -
       pieces_.begin());
-  if (pieces_behind > 64 && 2 * pieces_behind > pieces_.size()) {
-    pieces_.erase(pieces_.begin(), pieces_.begin() + static_cast<std::ptrdiff_t>(pieces_behind));
-    piece_base_ += static_cast<long>(pieces_behind);
-  }
+  piece_base_ += static_cast<long>(DropFront(pieces_, pieces_behind));
   const auto corners_behind = static_cast<std::size_t>(
       std::partition_point(corners_.begin(),
                            corners_.begin() + static_cast<std::ptrdiff_t>(settled_ - corner_base_),
                            [&](const Corner& c) { return c.s1 < keep_from; }) -
       corners_.begin());
-  if (corners_behind > 64 && 2 * corners_behind > corners_.size()) {
-    corners_.erase(corners_.begin(),
-                   corners_.begin() + static_cast<std::ptrdiff_t>(corners_behind));
-    corner_base_ += corners_behind;
-  }
+  corner_base_ += DropFront(corners_, corners_behind);
   while (slow_dead_ < slow_.size() && slow_[slow_dead_].s < keep_from) ++slow_dead_;
-  if (slow_dead_ > 64 && 2 * slow_dead_ > slow_.size()) {
-    slow_.erase(slow_.begin(), slow_.begin() + static_cast<std::ptrdiff_t>(slow_dead_));
-    slow_dead_ = 0;
-  }
+  if (DropFront(slow_, slow_dead_) > 0) slow_dead_ = 0;
 }
 
 void G1Path::Check() const {
