@@ -117,6 +117,7 @@ struct Box {
   double lo[kMaxAxes], hi[kMaxAxes];
   Limiter lo_kind[kMaxAxes], hi_kind[kMaxAxes];
   double band[kMaxAxes];  // narrowest of the three half-widths, for the search tolerance
+  double jerk_lo[kMaxAxes], jerk_hi[kMaxAxes];  // the jerk interval alone (Eq. 9), for the laws
 };
 
 struct Limits {
@@ -256,7 +257,7 @@ class Planner {
   Interval Tangential(const History& h) const;
   bool MakeBox(const History& h, Box* box) const;
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Direction(const History& h);
-  Effective Available(const History& h, const Interval& t);
+  Effective Available(const History& h, const Box& box, const Interval& t);
   std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e);
   // The backward limit of a slow point (nullptr when it could not be planned).
   const std::vector<std::pair<double, double>>* SlowCurve(const SlowPoint& point, const Step& near);
@@ -414,6 +415,8 @@ bool Planner::MakeBox(const History& h, Box* box) const {
     if (ca - wa > lo) lo = ca - wa, lo_kind = Limiter::kAxisAcceleration;
     if (ca + wa < hi) hi = ca + wa, hi_kind = Limiter::kAxisAcceleration;
     const double cj = 3.0 * q0 - 3.0 * q1 + q2;
+    box->jerk_lo[i] = cj - wj;
+    box->jerk_hi[i] = cj + wj;
     if (cj - wj > lo) lo = cj - wj, lo_kind = Limiter::kAxisJerk;
     if (cj + wj < hi) hi = cj + wj, hi_kind = Limiter::kAxisJerk;
     if (lo > hi) return false;
@@ -454,7 +457,7 @@ Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Planner::Direction(cons
 // alternated 160 / 640 mm/s^3 period by period, the stop crossed its release curve and reached
 // the end still braking; on a circle where the axis acceleration binds the feed dipped 4 % below
 // the closed form. The acceleration bound is the law's `acceleration`.
-Effective Planner::Available(const History& h, const Interval& t) {
+Effective Planner::Available(const History& h, const Box& box, const Interval& t) {
   using V = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1>;
   const double s0 = h.p0->s, s1 = h.p1->s;
   const double v0 = (s0 - s1) / dt_, a0 = (v0 - (s1 - h.p2->s) / dt_) / dt_;
@@ -490,10 +493,8 @@ Effective Planner::Available(const History& h, const Interval& t) {
     e.acceleration = std::min(e.acceleration, std::max(limits_[i].a - centripetal, 0.0) / k);
     // The axis jerk interval as an interval of s around the probe, then as path jerk around
     // `natural`.
-    const double jerk_centre = 3.0 * h.p0->q[i] - 3.0 * h.p1->q[i] + h.p2->q[i];
-    const double jerk_band = limits_[i].j * d3;
-    double a = probe.s + (jerk_centre - jerk_band - probe.q[i]) / g[i];
-    double b = probe.s + (jerk_centre + jerk_band - probe.q[i]) / g[i];
+    double a = probe.s + (box.jerk_lo[i] - probe.q[i]) / g[i];
+    double b = probe.s + (box.jerk_hi[i] - probe.q[i]) / g[i];
     if (a > b) std::swap(a, b);
     up = std::min(up, (b - natural) / d3);
     down = std::min(down, (natural - a) / d3);
@@ -829,7 +830,7 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
   if (t.lo > t.hi) return false;
   Box box;
   if (!MakeBox(h, &box)) return false;
-  const Effective e = Available(h, t);
+  const Effective e = Available(h, box, t);
   double target;
   LimiterId by;
   if (mode == Mode::kGreedy) {
