@@ -30,8 +30,11 @@ double Unit(TomlTable& t, std::string_view key, const std::map<std::string, doub
 Units ReadUnits(TomlTable& t, bool rotary_axes) {
   Units u;
   u.length = Unit(t, "length", {{"mm", 1.0}, {"m", 1000.0}, {"in", 25.4}});
-  const auto needed = [&](std::string_view key) { return rotary_axes || t.Has(key); };
-  if (needed("angle")) u.angle = Unit(t, "angle", {{"deg", kPi / 180.0}, {"rad", 1.0}});
+  // A unit only rotary axes use: read when they exist or the file states it, else left at 1.
+  const auto rotary = [&](std::string_view key, const std::map<std::string, double>& factors) {
+    return rotary_axes || t.Has(key) ? Unit(t, key, factors) : 1.0;
+  };
+  u.angle = rotary("angle", {{"deg", kPi / 180.0}, {"rad", 1.0}});
   u.linear_velocity = Unit(t, "linear_velocity",
                            {{"mm/s", 1.0},
                             {"mm/min", 1.0 / 60.0},
@@ -40,23 +43,15 @@ Units ReadUnits(TomlTable& t, bool rotary_axes) {
                             {"in/min", 25.4 / 60.0}});
   u.linear_acceleration = Unit(t, "linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}});
   u.linear_jerk = Unit(t, "linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}});
-  if (needed("rotary_velocity")) {
-    u.rotary_velocity = Unit(t, "rotary_velocity",
-                             {{"rad/s", 1.0},
-                              {"deg/s", kPi / 180.0},
-                              {"rpm", 2.0 * kPi / 60.0},
-                              {"rev/s", 2.0 * kPi},
-                              {"deg/min", kPi / 180.0 / 60.0}});
-  }
-  if (needed("rotary_acceleration")) {
-    u.rotary_acceleration =
-        Unit(t, "rotary_acceleration",
-             {{"rad/s^2", 1.0}, {"deg/s^2", kPi / 180.0}, {"rev/s^2", 2.0 * kPi}});
-  }
-  if (needed("rotary_jerk")) {
-    u.rotary_jerk = Unit(t, "rotary_jerk",
-                         {{"rad/s^3", 1.0}, {"deg/s^3", kPi / 180.0}, {"rev/s^3", 2.0 * kPi}});
-  }
+  u.rotary_velocity = rotary("rotary_velocity", {{"rad/s", 1.0},
+                                                 {"deg/s", kPi / 180.0},
+                                                 {"rpm", 2.0 * kPi / 60.0},
+                                                 {"rev/s", 2.0 * kPi},
+                                                 {"deg/min", kPi / 180.0 / 60.0}});
+  u.rotary_acceleration = rotary(
+      "rotary_acceleration", {{"rad/s^2", 1.0}, {"deg/s^2", kPi / 180.0}, {"rev/s^2", 2.0 * kPi}});
+  u.rotary_jerk =
+      rotary("rotary_jerk", {{"rad/s^3", 1.0}, {"deg/s^3", kPi / 180.0}, {"rev/s^3", 2.0 * kPi}});
   t.RejectUnknown();
   return u;
 }
