@@ -53,30 +53,63 @@ BENCHMARK_CAPTURE(Plan, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml"
 
 namespace {
 
+// What the surface benchmarks report: real-time factor, setpoints per second, Newton iterations
+// and pose evaluations per setpoint, summed over the timed runs.
+struct SurfaceCounts {
+  long setpoints = 0, iterations = 0, evaluations = 0;
+  double motion = 0.0;
+  void Add(const dtis::interp::VpopSummary& total, double motion_time_s) {
+    setpoints += total.setpoints;
+    iterations += total.path_iterations;
+    evaluations += total.evaluations;
+    motion += motion_time_s;
+  }
+  void Report(benchmark::State& state) const {
+    state.counters["setpoints_per_s"] =
+        benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
+    state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+    state.counters["newton_per_setpoint"] =
+        static_cast<double>(iterations) / static_cast<double>(setpoints);
+    state.counters["evals_per_setpoint"] =
+        static_cast<double>(evaluations) / static_cast<double>(setpoints);
+  }
+};
+
 // A whole surface job (STEP read, passes built and traced, passes and links planned), with 1 or 2
-// threads: real-time factor, setpoints per second and Newton iterations per setpoint.
-//   build/bench/dtis_bench --benchmark_filter=Surface
+// threads.
+//   build/bench/dtis_bench --benchmark_filter=Surface/
 void Surface(benchmark::State& state, const char* job_file) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   dtis::io::RunOptions options;
   options.threads = static_cast<int>(state.range(0));
-  long setpoints = 0, iterations = 0, evaluations = 0;
-  double motion = 0.0;
+  SurfaceCounts counts;
   for (auto _ : state) {
     const auto r = dtis::io::RunJob(job, options);
-    setpoints += r.vpop.setpoints;
-    iterations += r.vpop.path_iterations;
-    evaluations += r.vpop.evaluations;
-    motion += r.verify.motion_time_s;
+    counts.Add(r.vpop, r.verify.motion_time_s);
     benchmark::DoNotOptimize(r);
   }
-  state.counters["setpoints_per_s"] =
-      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
-  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
-  state.counters["newton_per_setpoint"] =
-      static_cast<double>(iterations) / static_cast<double>(setpoints);
-  state.counters["evals_per_setpoint"] =
-      static_cast<double>(evaluations) / static_cast<double>(setpoints);
+  counts.Report(state);
+}
+
+// The same jobs' planning alone, the surface set up once outside the timed loop (STEP read, face
+// and passes built), as the curve benchmarks above time the planning of a built path: what an
+// open CNC pays per period once the part is loaded.
+//   build/bench/dtis_bench --benchmark_filter=SurfacePlan/
+void SurfacePlan(benchmark::State& state, const char* job_file) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto setup = dtis::io::SetUpSurface(job);
+  std::vector<const dtis::PathSource*> passes;
+  for (const auto& pass : setup.passes.passes) passes.push_back(pass.get());
+  dtis::io::RunOptions options;
+  options.threads = static_cast<int>(state.range(0));
+  SurfaceCounts counts;
+  for (auto _ : state) {
+    const auto pp = dtis::io::PlanPasses(passes, setup, *machine, options, job.file);
+    counts.Add(pp.program.total, pp.program.total.motion_time_s);
+    benchmark::DoNotOptimize(pp);
+  }
+  counts.Report(state);
 }
 
 BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
@@ -85,6 +118,17 @@ BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_CAPTURE(Surface, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
+BENCHMARK_CAPTURE(SurfacePlan, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(SurfacePlan, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml")
     ->Arg(1)
     ->Arg(2)
     ->Unit(benchmark::kMillisecond)
