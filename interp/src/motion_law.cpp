@@ -72,16 +72,38 @@ StopDistance StopDistanceBySimulation(double v, double a, double jerk, double ac
 
 namespace {
 
-// The largest k in [1, hi] for which holds(k), given holds(1) and that holds is true then false.
+// The largest k in [1, hi] for which holds(k), given holds(1) and that holds is true then false:
+// galloping from `guess` (two probes when the guess is the answer, one when it is hi), then
+// bisecting the bracket the gallop found.
 template <typename Holds>
-long LastTrue(long hi, const Holds& holds) {
-  long lo = 1;
-  while (lo < hi) {
-    const long mid = lo + (hi - lo + 1) / 2;
+long LastTrue(long hi, long guess, const Holds& holds) {
+  long lo = 1, up = hi + 1;  // holds(lo); up > hi or !holds(up)
+  guess = std::clamp(guess, lo, hi);
+  if (guess > lo && !holds(guess)) {
+    up = guess;
+    for (long d = 1; up - d > lo; d *= 2) {
+      if (holds(up - d)) {
+        lo = up - d;
+        break;
+      }
+      up -= d;
+    }
+  } else {
+    lo = guess;
+    for (long d = 1; lo + d < up; d *= 2) {
+      if (!holds(lo + d)) {
+        up = lo + d;
+        break;
+      }
+      lo += d;
+    }
+  }
+  while (up - lo > 1) {
+    const long mid = lo + (up - lo) / 2;
     if (holds(mid)) {
       lo = mid;
     } else {
-      hi = mid - 1;
+      up = mid;
     }
   }
   return lo;
@@ -115,9 +137,29 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
     const double mm = static_cast<double>(m);
     return v + dt * (mm * a + da * mm * (mm + 1.0) / 2.0);
   };
+  // The guess for such a phase's length: where it meets the release plan, a_m = -b with b the
+  // release's deceleration for v_{m-1}, b^2 / 2j + b dt / 2 = v_{m-1} (MaxAccelerationUnderCap's
+  // cap, exact when b is a whole number of jerk steps), or where v_m reaches zero, whichever comes
+  // first: quadratics in m, their first roots >= 1 (`most` when there is none).
+  const auto phase_guess = [&](double da, long most) {
+    double first = static_cast<double>(most);
+    const auto roots = [&first](double q2, double q1, double q0, const auto& valid) {
+      const double disc = q1 * q1 - 4.0 * q2 * q0;
+      if (disc < 0.0) return;
+      const double q = -0.5 * (q1 + std::copysign(std::sqrt(disc), q1));
+      for (const double m : {q2 != 0.0 ? q / q2 : INFINITY, q != 0.0 ? q0 / q : INFINITY}) {
+        if (m >= 1.0 && m < first && valid(m)) first = m;
+      }
+    };
+    roots(da * da / (2.0 * release_jerk) - dt * da / 2.0, a * (da / release_jerk - dt),
+          a * a / (2.0 * release_jerk) + a * dt / 2.0 - v,
+          [&](double m) { return a + da * m <= 0.0; });
+    roots(da / 2.0, a + da / 2.0, v / dt, [](double) { return true; });
+    return static_cast<long>(first);
+  };
   const auto jump = [&](double da, long most, const auto& goes) {
     if (most < kMinJump || !goes(kMinJump)) return false;
-    const long k = LastTrue(most, goes);
+    const long k = LastTrue(most, phase_guess(da, most), goes);
     const double kk = static_cast<double>(k);
     distance +=
         dt * (kk * v + dt * (a * kk * (kk + 1.0) / 2.0 + da * kk * (kk + 1.0) * (kk + 2.0) / 6.0));
@@ -127,7 +169,9 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
     return true;
   };
   while (v != 0.0 || a != 0.0) {
-    const double next = StopAcceleration(v, a, jerk, acceleration, dt);
+    // StopAcceleration, with the release's own choice kept for the release branch below.
+    const double released = release(v);
+    const double next = std::min(std::max({a - step, -acceleration, released}), a + step);
     if (next == a - step && next > -acceleration) {
       // Ramp: the law brakes harder at the full jerk.
       const auto ramps = [&](long m) {  // period m chooses a_{m-1} - step
@@ -152,14 +196,17 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
       };
       const long most = static_cast<long>(v / (acceleration * dt)) + 1;
       if (most >= kMinJump && holds(kMinJump)) {
-        const long k = LastTrue(most, holds);
+        // The hold lasts while the release from -acceleration still fits in v: v >= hold_end.
+        const double hold_end = acceleration * dt + ReleaseGain(acceleration, release_jerk, dt);
+        const long k =
+            LastTrue(most, 1 + static_cast<long>((v - hold_end) / (acceleration * dt)), holds);
         const double kk = static_cast<double>(k);
         distance += dt * (kk * v - acceleration * dt * kk * (kk + 1.0) / 2.0);
         v = v_at(k);
         periods += static_cast<int>(k);
         continue;
       }
-    } else if (next == release(v) && next > a - step && next < a + step) {
+    } else if (next == released && next > a - step && next < a + step) {
       // Release: a_i = -b + i j dt (i = 0, 1, ...), v_i = v - dt (i b - j dt i (i - 1) / 2).
       const double b = -next, rstep = release_jerk * dt;
       const auto v_at = [&](long i) {
@@ -174,7 +221,7 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
       const long most = static_cast<long>(b / rstep) + 1;
       if (most >= kMinJump && releases(kMinJump)) {
         // Leave the last periods to the loop: it settles v and a to exactly zero.
-        const long k = LastTrue(most, releases) - 2;
+        const long k = LastTrue(most, most, releases) - 2;
         if (k >= kMinJump) {
           const double kk = static_cast<double>(k);
           distance += dt * (kk * v - dt * (b * kk * (kk + 1.0) / 2.0 -
