@@ -182,6 +182,37 @@ TEST(SurfacePass, PlaneCcPutsTheContactPointOnThePlane) {
   }
 }
 
+// The planner may ask for an arc length a rounding error away from a state it holds (a look-ahead
+// search converging on it). The march used to try a step of 1e-16 mm there, which its Newton
+// cannot resolve: it halved the step ten times and reported "did not converge" on the plane_cl
+// sample's first pass, which runs along the face's edge v = 0.
+TEST(SurfacePass, AnArcLengthARoundingErrorFromAKnownStateIsThatState) {
+  const StepModel m = StepModel::Load(test::Source(kTrj8));
+  const FaceSurface surface(geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0}), "trj8");
+  StrategySpec spec;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 2.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(3.0), Orientation{}, spec);
+  ASSERT_FALSE(passes.passes.empty());
+  const auto& pass = *passes.passes[0];
+  PathState st = pass.Start();
+  int probed = 0;
+  for (double s = 0.05; s < *pass.Length() - 0.1; s += 0.173) {
+    const PathSample here = pass.At(st, s);
+    ASSERT_EQ(here.status, PathStatus::kOk) << s;
+    st = here.state;
+    for (const double ulps : {1.0, 4.0, -1.0, -4.0}) {
+      const double at = st.s + ulps * (std::nextafter(st.s, INFINITY) - st.s);
+      const PathSample near = pass.At(st, at);
+      ASSERT_EQ(near.status, PathStatus::kOk) << "from " << st.s << " to " << at;
+      EXPECT_LT((near.pose.tip - here.pose.tip).norm(), 1e-12);
+      ++probed;
+    }
+  }
+  EXPECT_GT(probed, 40);
+}
+
 TEST(SurfacePass, IsoLinesKeepTheirParameterAndArcLengthIsTheTipPath) {
   const StepModel m = StepModel::Load(test::Source(kStrip));
   const FaceSurface surface(m.Face(1), "strip");

@@ -370,7 +370,12 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   constexpr double kOffFaceMm = 1e-2;
   bool stalled = false;
   double longest = options_.max_step_mm;
-  while (target != cur_s && !stalled) {
+  for (;;) {
+    // A rounding error from the target is the target: a step of 1e-16 mm is below what the
+    // Newton of a step resolves, and the march would halve it until it gave up (the look-ahead's
+    // searches ask for such arc lengths).
+    if (std::abs(target - cur_s) < 1e-12 * (1.0 + std::abs(target))) cur_s = target;
+    if (target == cur_s || stalled) break;
     const double delta = std::clamp(target - cur_s, -longest, longest);
     ContactPoint next;
     EvalStatus status = EvalStatus::kOk;
@@ -411,7 +416,6 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
     }
     cur = next;
     cur_s += delta;
-    if (std::abs(target - cur_s) < 1e-12 * (1.0 + std::abs(target))) cur_s = target;
   }
   cache_[1 - from_slot] = cur;
   cache_valid_[1 - from_slot] = true;
