@@ -147,7 +147,6 @@ StepModel StepModel::Load(const std::string& path) {
   }
   for (TopExp_Explorer e(model.shape_, TopAbs_FACE); e.More(); e.Next()) {
     model.faces_.push_back(TopoDS::Face(e.Current()));
-    model.infos_.push_back(Describe(static_cast<int>(model.faces_.size()), model.faces_.back()));
   }
   if (model.faces_.empty()) throw Error("{}: the file holds no face", path);
   return model;
@@ -163,9 +162,12 @@ const TopoDS_Face& StepModel::Face(int index) const {
   return faces_[static_cast<std::size_t>(index - 1)];
 }
 
-const FaceInfo& StepModel::Info(int index) const {
-  Face(index);  // range check
-  return infos_[static_cast<std::size_t>(index - 1)];
+FaceInfo StepModel::Info(int index) const { return Describe(index, Face(index)); }
+
+std::vector<FaceInfo> StepModel::Infos() const {
+  std::vector<FaceInfo> infos;
+  for (int k = 1; k <= FaceCount(); ++k) infos.push_back(Info(k));
+  return infos;
 }
 
 std::string FormatFaceTable(const StepModel& model) {

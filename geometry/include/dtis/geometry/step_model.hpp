@@ -34,14 +34,15 @@ class StepModel {
   int FaceCount() const { return static_cast<int>(faces_.size()); }
   // 1-based; throws dtis::Error listing the valid range.
   const TopoDS_Face& Face(int index) const;
-  const FaceInfo& Info(int index) const;
-  const std::vector<FaceInfo>& Infos() const { return infos_; }
+  // What `dtis faces` lists, worked out when asked (the bounding box is an optimisation over the
+  // surface, a millisecond or more per face: a job that plans one face does not pay it for all).
+  FaceInfo Info(int index) const;
+  std::vector<FaceInfo> Infos() const;
 
  private:
   std::string file_;
   TopoDS_Shape shape_;
   std::vector<TopoDS_Face> faces_;
-  std::vector<FaceInfo> infos_;
 };
 
 // The table `dtis faces` prints.
