@@ -26,12 +26,25 @@ double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt) {
   return (room + unit * n * (n - 1.0) / 2.0) / (n * dt);
 }
 
+namespace {
+
+// The hardest braking a release at `release_jerk` still brings back to zero acceleration as v
+// reaches zero: v + a' dt - ReleaseGain(-a') >= 0, i.e. b = -a' with b dt + gain(b) <= v.
+double ReleaseAcceleration(double v, double release_jerk, double dt) {
+  return -MaxAccelerationUnderCap(0.0, std::max(v, 0.0), release_jerk, dt);
+}
+
+// The stop law's next acceleration, given the release's: brake harder by the jerk step down to
+// -acceleration, but no harder than the release allows, and never change a by more than a step.
+double StopChoice(double a, double step, double acceleration, double released) {
+  return std::min(std::max({a - step, -acceleration, released}), a + step);
+}
+
+}  // namespace
+
 double StopAcceleration(double v, double a, double jerk, double acceleration, double dt) {
-  // Release condition: v + a' dt - ReleaseGain(-a') >= 0, i.e. b = -a' with b dt + gain(b) <= v.
-  const double release =
-      -MaxAccelerationUnderCap(0.0, std::max(v, 0.0), jerk * kReleaseJerkFraction, dt);
-  double next = std::max({a - jerk * dt, -acceleration, release});
-  return std::min(next, a + jerk * dt);
+  return StopChoice(a, jerk * dt, acceleration,
+                    ReleaseAcceleration(v, jerk * kReleaseJerkFraction, dt));
 }
 
 namespace {
@@ -118,17 +131,15 @@ constexpr long kMinJump = 8;
 // ramp (a falls by jerk dt per period), the rise (a state braked harder than its release needs
 // lets go by jerk dt per period), the hold at -acceleration, and the release, which follows
 // its own plan (accelerations -b, -b + j dt, ... as MaxAccelerationUnderCap planned them) because
-// that plan re-aims to itself period after period. Each phase's length is found by bisection on
-// the law's own choice, so the result is the simulation's up to rounding.
+// that plan re-aims to itself period after period. Each phase's length is found by a search on the
+// law's own choice (from a closed-form guess), so the result is the simulation's up to rounding.
 StopDistance StopDistanceFrom(double v, double a, double jerk, double acceleration, double dt) {
   double distance = 0.0;
   int periods = 0;
   const double tiny = 1e-12 * (1.0 + std::abs(v));
   const double step = jerk * dt;
   const double release_jerk = jerk * kReleaseJerkFraction;
-  const auto release = [&](double speed) {
-    return -MaxAccelerationUnderCap(0.0, std::max(speed, 0.0), release_jerk, dt);
-  };
+  const auto release = [&](double speed) { return ReleaseAcceleration(speed, release_jerk, dt); };
   // The ramp and the rise: a changes by da = -step or +step each period, a_m = a + m da,
   // v_m = v + dt (m a + da m (m + 1) / 2). `jump` sums the periods 1..k of such a phase in closed
   // form, k the last one for which `goes` holds, when that is at least kMinJump of them.
@@ -171,7 +182,7 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
   while (v != 0.0 || a != 0.0) {
     // StopAcceleration, with the release's own choice kept for the release branch below.
     const double released = release(v);
-    const double next = std::min(std::max({a - step, -acceleration, released}), a + step);
+    const double next = StopChoice(a, step, acceleration, released);
     if (next == a - step && next > -acceleration) {
       // Ramp: the law brakes harder at the full jerk.
       const auto ramps = [&](long m) {  // period m chooses a_{m-1} - step
