@@ -13,26 +13,48 @@ double ReleaseGain(double a, double jerk, double dt) {
   return dt * ((n - 1.0) * a - step * n * (n - 1.0) / 2.0);
 }
 
-double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt) {
-  const double room = cap - v;
-  if (room <= 0.0) return room / dt;
-  // On the piece a in ((n-1) J dt, n J dt]: v + n dt a - J dt^2 n (n-1) / 2 = cap, and the piece
-  // boundaries are at room = J dt^2 n (n -+ 1) / 2.
-  const double unit = jerk * dt * dt;
-  double n = std::ceil((-1.0 + std::sqrt(1.0 + 8.0 * room / unit)) / 2.0);
+namespace {
+
+// MaxAccelerationUnderCap for room = cap - v > 0 and unit = jerk dt^2. On the piece
+// a in ((n-1) J dt, n J dt]: v + n dt a - J dt^2 n (n-1) / 2 = cap, and the piece boundaries are at
+// room = J dt^2 n (n -+ 1) / 2. The square root only seeds n, the loops settle it exactly (the
+// least n >= 1 with unit n (n + 1) / 2 >= room, whatever the seed), so `eight_over_unit` = 8 / unit
+// may come precomputed: the stop law's release asks this with one unit a dozen times per stop.
+double AccelerationInRoom(double room, double unit, double eight_over_unit, double dt) {
+  double n = std::ceil((-1.0 + std::sqrt(1.0 + eight_over_unit * room)) / 2.0);
   n = std::max(n, 1.0);
   while (n > 1.0 && unit * (n - 1.0) * n / 2.0 >= room) n -= 1.0;
   while (unit * n * (n + 1.0) / 2.0 < room) n += 1.0;
   return (room + unit * n * (n - 1.0) / 2.0) / (n * dt);
 }
 
+}  // namespace
+
+double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt) {
+  const double room = cap - v;
+  if (room <= 0.0) return room / dt;
+  const double unit = jerk * dt * dt;
+  return AccelerationInRoom(room, unit, 8.0 / unit, dt);
+}
+
 namespace {
 
 // The hardest braking a release at `release_jerk` still brings back to zero acceleration as v
-// reaches zero: v + a' dt - ReleaseGain(-a') >= 0, i.e. b = -a' with b dt + gain(b) <= v.
-double ReleaseAcceleration(double v, double release_jerk, double dt) {
-  return -MaxAccelerationUnderCap(0.0, std::max(v, 0.0), release_jerk, dt);
-}
+// reaches zero: v + a' dt - ReleaseGain(-a') >= 0, i.e. b = -a' with b dt + gain(b) <= v. That is
+// -MaxAccelerationUnderCap(0, v, release_jerk, dt), with the jerk's unit kept for repeated use.
+class Release {
+ public:
+  Release(double release_jerk, double dt)
+      : unit_(release_jerk * dt * dt), eight_over_unit_(8.0 / unit_), dt_(dt) {}
+  double operator()(double v) const {
+    const double room = std::max(v, 0.0);
+    if (room <= 0.0) return -(room / dt_);
+    return -AccelerationInRoom(room, unit_, eight_over_unit_, dt_);
+  }
+
+ private:
+  double unit_, eight_over_unit_, dt_;
+};
 
 // The stop law's next acceleration, given the release's: brake harder by the jerk step down to
 // -acceleration, but no harder than the release allows, and never change a by more than a step.
@@ -43,8 +65,7 @@ double StopChoice(double a, double step, double acceleration, double released) {
 }  // namespace
 
 double StopAcceleration(double v, double a, double jerk, double acceleration, double dt) {
-  return StopChoice(a, jerk * dt, acceleration,
-                    ReleaseAcceleration(v, jerk * kReleaseJerkFraction, dt));
+  return StopChoice(a, jerk * dt, acceleration, Release(jerk * kReleaseJerkFraction, dt)(v));
 }
 
 namespace {
@@ -139,7 +160,7 @@ StopDistance StopDistanceFrom(double v, double a, double jerk, double accelerati
   const double tiny = 1e-12 * (1.0 + std::abs(v));
   const double step = jerk * dt;
   const double release_jerk = jerk * kReleaseJerkFraction;
-  const auto release = [&](double speed) { return ReleaseAcceleration(speed, release_jerk, dt); };
+  const Release release(release_jerk, dt);
   // The ramp and the rise: a changes by da = -step or +step each period, a_m = a + m da,
   // v_m = v + dt (m a + da m (m + 1) / 2). `jump` sums the periods 1..k of such a phase in closed
   // form, k the last one for which `goes` holds, when that is at least kMinJump of them.
