@@ -8,7 +8,12 @@
 #include <BRep_Tool.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GeomAdaptor_Surface.hxx>
+#include <GeomConvert.hxx>
 #include <Geom_BSplineCurve.hxx>
+#include <Geom_BSplineSurface.hxx>
+#include <Geom_CylindricalSurface.hxx>
+#include <Geom_RectangularTrimmedSurface.hxx>
 #include <Geom_Surface.hxx>
 #include <TopoDS_Wire.hxx>
 #include <cmath>
@@ -95,6 +100,72 @@ TEST(StepModel, BadFilesGetOneClearMessage) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("faces 1 to 1"), std::string::npos) << e.what();
   }
+}
+
+// dtis' own B-spline kernel against OpenCASCADE's evaluation of the same surface, on every face of
+// the bundled parts: inside the domain, on its knots (a span's two sides meet there) and up to 5 %
+// beyond it (where both continue the end spans' polynomials).
+TEST(FaceSurface, OwnKernelAgreesWithOpenCascadeOnEveryBundledFace) {
+  std::mt19937_64 rng(20261122);
+  int own = 0;
+  for (const char* file :
+       {"occt_trj8_c2-db-214_single_bspline_face.stp", "occt_OCC26308-Face_single_bspline_face.stp",
+        "occt_bug29478_single_rational_face_worknc.stp",
+        "occt_bug29715_single_bspline_face_22x22.stp", "occt_bug28366_fuselage_8faces.stp"}) {
+    const StepModel m = StepModel::Load(test::Source(std::string("samples/parts/") + file));
+    for (int f = 1; f <= m.FaceCount(); ++f) {
+      const FaceSurface surface(m.Face(f), "face");
+      own += surface.OwnKernel();
+      const GeomAdaptor_Surface occt(BRep_Tool::Surface(m.Face(f)));
+      const double du = surface.U1() - surface.U0(), dv = surface.V1() - surface.V0();
+      std::uniform_real_distribution<double> u(surface.U0() - 0.05 * du, surface.U1() + 0.05 * du),
+          v(surface.V0() - 0.05 * dv, surface.V1() + 0.05 * dv);
+      std::vector<std::pair<double, double>> at;
+      for (int k = 0; k < 300; ++k) at.emplace_back(u(rng), v(rng));
+      if (occt.GetType() == GeomAbs_BSplineSurface) {
+        const auto b = occt.BSpline();
+        for (int i = 1; i <= b->NbUKnots(); ++i) at.emplace_back(b->UKnot(i), v(rng));
+        for (int j = 1; j <= b->NbVKnots(); ++j) at.emplace_back(u(rng), b->VKnot(j));
+      }
+      for (const auto& [uu, vv] : at) {
+        geometry::SurfaceDerivatives d;
+        surface.D2(uu, vv, &d);
+        gp_Pnt p;
+        gp_Vec su, sv, suu, svv, suv;
+        occt.D2(uu, vv, p, su, sv, suu, svv, suv);
+        const auto near = [&](const Eigen::Vector3d& mine, const gp_XYZ& theirs, const char* what) {
+          const Eigen::Vector3d t(theirs.X(), theirs.Y(), theirs.Z());
+          EXPECT_LE((mine - t).norm(), 1e-9 * (1.0 + t.norm()))
+              << file << " face " << f << " " << what << " at (" << uu << ", " << vv << ")";
+        };
+        near(d.p, p.XYZ(), "point");
+        near(surface.Point(uu, vv), p.XYZ(), "Point()");
+        near(d.su, su.XYZ(), "S_u");
+        near(d.sv, sv.XYZ(), "S_v");
+        near(d.suu, suu.XYZ(), "S_uu");
+        near(d.suv, suv.XYZ(), "S_uv");
+        near(d.svv, svv.XYZ(), "S_vv");
+      }
+    }
+  }
+  EXPECT_GE(own, 5);  // trj8, the strip, the rational face, the 22 x 22 face and the fuselage's
+}
+
+// A periodic B-spline surface (a cylinder) stays with OpenCASCADE, which wraps its parameter.
+TEST(FaceSurface, PeriodicSurfacesAreLeftToOpenCascade) {
+  const Handle(Geom_Surface) cylinder = new Geom_CylindricalSurface(gp::XOY(), 10.0);
+  const Handle(Geom_BSplineSurface) b = GeomConvert::SurfaceToBSplineSurface(
+      new Geom_RectangularTrimmedSurface(cylinder, 0.0, 2.0 * M_PI, 0.0, 5.0));
+  b->SetUPeriodic();
+  ASSERT_TRUE(b->IsUPeriodic());
+  const TopoDS_Face face = BRepBuilderAPI_MakeFace(b, 1e-7).Face();
+  const FaceSurface surface(face, "cylinder");
+  EXPECT_FALSE(surface.OwnKernel());
+  geometry::SurfaceDerivatives d;
+  surface.D2(0.3 + 2.0 * M_PI, 1.0, &d);  // a period on: the same point
+  const gp_Pnt at = b->Value(0.3, 1.0);
+  EXPECT_NEAR(std::hypot(d.p.x(), d.p.y()), 10.0, 1e-6);
+  EXPECT_LE((d.p - Eigen::Vector3d(at.X(), at.Y(), at.Z())).norm(), 1e-9);
 }
 
 struct PlannedPass {

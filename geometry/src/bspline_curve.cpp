@@ -8,7 +8,7 @@
 namespace dtis::geometry {
 namespace {
 
-using Table = std::array<std::array<double, kMaxCurveDegree + 1>, kMaxCurveDegree + 1>;
+using Table = BasisTable;
 
 // Non-vanishing basis functions at u in span (A2.2). kDegree >= 0 fixes the degree at compile
 // time, so that the loops unroll (the same operations in the same order: the same bits).
@@ -110,6 +110,11 @@ void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, i
 }
 
 }  // namespace
+
+void BasisDerivativesInSpan(const std::vector<double>& knots, int span, double u, int degree, int n,
+                            BasisTable& ders) {
+  BasisDerivatives(knots, span, u, degree, n, ders);
+}
 
 BSplineCurve::BSplineCurve(BSplineCurveData data, const std::string& what)
     : degree_(data.degree),

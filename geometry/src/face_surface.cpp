@@ -5,6 +5,7 @@
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
 #include <Geom2d_Curve.hxx>
+#include <Geom_BSplineSurface.hxx>
 #include <Geom_Surface.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopLoc_Location.hxx>
@@ -84,6 +85,9 @@ FaceSurface::FaceSurface(const TopoDS_Face& face, std::string where)
   const Handle(Geom_Surface) s = BRep_Tool::Surface(face_);
   if (s.IsNull()) throw Error("{}: the face has no surface", where_);
   surface_.Load(s);
+  if (surface_.GetType() == GeomAbs_BSplineSurface) {
+    spans_ = BSplineSurfaceSpans::From(*surface_.BSpline());
+  }
   BRepTools::UVBounds(face_, u0_, u1_, v0_, v1_);
   // The domain is the UV box unless the face's boundary is not that box's four sides.
   trimmed_ = !BoundedByBox(face_, u0_, u1_, v0_, v1_, 1e-9, 2);
@@ -98,6 +102,7 @@ FaceSurface::FaceSurface(const FaceSurface& other) : FaceSurface(other.face_, ot
 FaceSurface::~FaceSurface() = default;
 
 void FaceSurface::D2(double u, double v, SurfaceDerivatives* d) const {
+  if (spans_) return spans_->D2(u, v, d);
   gp_Pnt p;
   gp_Vec su, sv, suu, svv, suv;
   surface_.D2(u, v, p, su, sv, suu, svv, suv);
@@ -109,7 +114,10 @@ void FaceSurface::D2(double u, double v, SurfaceDerivatives* d) const {
   d->svv = V(svv);
 }
 
-Eigen::Vector3d FaceSurface::Point(double u, double v) const { return V(surface_.Value(u, v)); }
+Eigen::Vector3d FaceSurface::Point(double u, double v) const {
+  if (spans_) return spans_->Point(u, v);
+  return V(surface_.Value(u, v));
+}
 
 bool FaceSurface::Inside(double u, double v) const {
   const double tol = 1e-12 * std::max({1.0, u1_ - u0_, v1_ - v0_});

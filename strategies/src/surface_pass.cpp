@@ -86,7 +86,10 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   }
   const Vec3J big_n = su.cross(sv);
   const Jet n_norm = sqrt(big_n.squaredNorm());
-  if (!(n_norm.a > 1e-10 * d.su.norm() * d.sv.norm()) || !(n_norm.a > 1e-300)) {
+  // Degenerate: S_u and S_v parallel, or one of them vanishing against the other (a collapsed edge:
+  // there the vanishing tangent is rounding noise, whose direction means nothing).
+  const double longer = std::max(d.su.norm(), d.sv.norm());
+  if (!(n_norm.a > 1e-10 * longer * longer) || !(n_norm.a > 1e-300)) {
     return EvalStatus::kDegenerateNormal;
   }
   const Vec3J n = big_n * (Jet(side_) / n_norm);

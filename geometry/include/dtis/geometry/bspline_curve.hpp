@@ -58,4 +58,12 @@ class BSplineCurve {
 // poles are the unknowns. `knots` must be valid for some number of poles (size >= 2 degree + 2).
 int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double* N);
 
+// The degree + 1 basis functions that do not vanish in knot span `span` (knots[span] <= u <
+// knots[span + 1], or u beyond it: the span's polynomials continued) and their derivatives up to
+// order n <= degree <= kMaxCurveDegree at u: ders[k][j] is the k-th derivative of the function of
+// pole span - degree + j (The NURBS Book, A2.3).
+using BasisTable = std::array<std::array<double, kMaxCurveDegree + 1>, kMaxCurveDegree + 1>;
+void BasisDerivativesInSpan(const std::vector<double>& knots, int span, double u, int degree, int n,
+                            BasisTable& ders);
+
 }  // namespace dtis::geometry

@@ -1,9 +1,10 @@
-// Evaluation of one face of a STEP part: points and derivatives up to order 2 through
-// OpenCASCADE's generic surface evaluation (B-spline and rational faces first-class, analytic faces
-// too), and whether a (u, v) lies in the face's trimmed domain.
+// Evaluation of one face of a STEP part: points and derivatives up to order 2 (B-spline and
+// rational faces with dtis' own kernel, BSplineSurfaceSpans; periodic ones and analytic faces
+// through OpenCASCADE's generic surface evaluation), and whether a (u, v) lies in the face's
+// trimmed domain.
 //
-// A FaceSurface caches evaluation spans (OpenCASCADE's adaptor cache), so it is not thread-safe:
-// copy one per thread (a copy builds its own cache).
+// A FaceSurface caches evaluation spans (its own, or OpenCASCADE's adaptor cache), so it is not
+// thread-safe: copy one per thread (a copy builds its own cache).
 #pragma once
 
 #include <BRepTopAdaptor_FClass2d.hxx>
@@ -11,15 +12,14 @@
 #include <GeomAdaptor_Surface.hxx>
 #include <TopoDS_Face.hxx>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
-namespace dtis::geometry {
+#include "dtis/geometry/bspline_surface.hpp"
 
-struct SurfaceDerivatives {
-  Eigen::Vector3d p, su, sv, suu, suv, svv;
-};
+namespace dtis::geometry {
 
 // The face set up on the machine: rotated about the workpiece origin's X, then Y, then Z axis by
 // `rotate_deg`, then moved by `translate_mm`.
@@ -50,6 +50,8 @@ class FaceSurface {
   double V0() const { return v0_; }
   double V1() const { return v1_; }
   bool Trimmed() const { return trimmed_; }
+  // Evaluated by dtis' own B-spline kernel (BSplineSurfaceSpans), not OpenCASCADE's adaptor.
+  bool OwnKernel() const { return spans_.has_value(); }
   // (u, v) lies in the face's domain: its UV box, and inside its trimming loops for a trimmed face.
   bool Inside(double u, double v) const;
   // How far (u, v) is off the face, mm: 0 inside; beyond the UV box, the distance to the point at
@@ -67,6 +69,7 @@ class FaceSurface {
   TopoDS_Face face_;
   std::string where_;
   GeomAdaptor_Surface surface_;
+  mutable std::optional<BSplineSurfaceSpans> spans_;  // B-spline faces it takes; else surface_
   double u0_ = 0, u1_ = 0, v0_ = 0, v1_ = 0;
   bool trimmed_ = false;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;
