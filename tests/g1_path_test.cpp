@@ -17,6 +17,7 @@
 #include "dtis/geometry/path_fit.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/curve_file.hpp"
 #include "dtis/io/gcode_program.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
@@ -774,6 +775,30 @@ TEST(GcodeProgram, LongChainsAreReadAsTheyAreBuilt) {
   }
   EXPECT_EQ(windowed, five_axis.size());
   EXPECT_FALSE(segments.Next());
+}
+
+// The PathSource contract on every curve-like source (test::ExpectRoundingStepsHold).
+TEST(PathSource, AnArcLengthARoundingErrorFromAKnownStateIsThatState) {
+  const io::CurveFile trident = io::LoadCurveFile(test::Source("samples/curves/trident.toml"));
+  test::ExpectRoundingStepsHold(geometry::CurvePath(trident.bottom, Vector3d::UnitZ()), "trident");
+  const io::CurveFile pocket = io::LoadCurveFile(test::Source("samples/curves/open_pocket.toml"));
+  ASSERT_TRUE(pocket.top);
+  test::ExpectRoundingStepsHold(geometry::CurvePath(pocket.bottom, *pocket.top),
+                                "open pocket pair");
+  test::ExpectRoundingStepsHold(geometry::LinePath({0, 0, 0}, {100, 20, -3}, Vector3d::UnitZ()),
+                                "line");
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const io::GcodeProgram program = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
+  std::vector<geometry::ChainMove> moves;
+  for (std::size_t k = 2; k + 1 < program.moves.size(); ++k) {
+    geometry::ChainMove m;
+    m.tip = program.moves[k].to;
+    m.line = program.moves[k].line;
+    moves.push_back(m);
+  }
+  test::ExpectRoundingStepsHold(
+      geometry::G1Path(program.moves[1].to, Vector3d::UnitZ(), moves, *machine), "lock G1 chain");
 }
 
 }  // namespace
