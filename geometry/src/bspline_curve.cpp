@@ -8,8 +8,6 @@
 namespace dtis::geometry {
 namespace {
 
-using Table = BasisTable;
-
 // Non-vanishing basis functions at u in span (A2.2). kDegree >= 0 fixes the degree at compile
 // time, so that the loops unroll (the same operations in the same order: the same bits).
 template <int kDegree>
@@ -48,9 +46,9 @@ void BasisFunctions(const std::vector<double>& U, int span, double u, int p, dou
 // table is cleared: zeroing their 2 x 2 KB cost more than the recurrences themselves at degree 3.
 template <int kDegree>
 void BasisDerivativesOfDegree(const std::vector<double>& U, int span, double u, int degree, int n,
-                              Table& ders) {
+                              BasisTable& ders) {
   const int p = kDegree >= 0 ? kDegree : degree;
-  Table ndu;
+  BasisTable ndu;
   std::array<double, kMaxCurveDegree + 1> left, right;
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
@@ -98,7 +96,10 @@ void BasisDerivativesOfDegree(const std::vector<double>& U, int span, double u, 
   }
 }
 
-void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, int n, Table& ders) {
+}  // namespace
+
+void BasisDerivativesInSpan(const std::vector<double>& U, int span, double u, int p, int n,
+                            BasisTable& ders) {
   switch (p) {
     case 2:
       return BasisDerivativesOfDegree<2>(U, span, u, p, n, ders);
@@ -107,13 +108,6 @@ void BasisDerivatives(const std::vector<double>& U, int span, double u, int p, i
     default:
       return BasisDerivativesOfDegree<-1>(U, span, u, p, n, ders);
   }
-}
-
-}  // namespace
-
-void BasisDerivativesInSpan(const std::vector<double>& knots, int span, double u, int degree, int n,
-                            BasisTable& ders) {
-  BasisDerivatives(knots, span, u, degree, n, ders);
 }
 
 BSplineCurve::BSplineCurve(BSplineCurveData data, const std::string& what)
@@ -210,14 +204,19 @@ int BSplineCurve::FindSpan(double u, bool from_left) const {
   return static_cast<int>(std::upper_bound(first, last, u) - knots_.begin()) - 1;
 }
 
+int KnotSpan(const std::vector<double>& knots, int degree, double u) {
+  const int p = degree;
+  const int n = static_cast<int>(knots.size()) - p - 2;  // last pole index
+  const auto first = knots.begin() + p;
+  const auto last = knots.begin() + n + 1;  // the last span is closed on the right
+  return std::clamp(static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1, p, n);
+}
+
 int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double* N) {
   const int p = degree;
   const int n = static_cast<int>(knots.size()) - p - 2;  // last pole index
   u = std::clamp(u, knots[static_cast<std::size_t>(p)], knots[static_cast<std::size_t>(n + 1)]);
-  const auto first = knots.begin() + p;
-  const auto last = knots.begin() + n + 1;  // the last span is closed on the right
-  const int span =
-      std::clamp(static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1, p, n);
+  const int span = KnotSpan(knots, p, u);
   BasisFunctions(knots, span, u, p, N);
   return span - p;
 }
@@ -243,8 +242,8 @@ void BSplineCurve::Derivatives(double u, int order, Eigen::Vector3d* d, bool fro
   u = std::clamp(u, FirstParameter(), LastParameter());
   const int span = FindSpan(u, from_left);
   const int n = std::min(order, degree_);
-  Table ders;
-  BasisDerivatives(knots_, span, u, degree_, n, ders);
+  BasisTable ders;
+  BasisDerivativesInSpan(knots_, span, u, degree_, n, ders);
   const std::size_t first = static_cast<std::size_t>(span - degree_);
   if (weights_.empty()) {
     for (int k = 0; k <= order; ++k) {

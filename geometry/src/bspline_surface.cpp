@@ -12,14 +12,6 @@
 namespace dtis::geometry {
 namespace {
 
-// The knot span of u among flat knots of degree p and n + 1 poles: knots[span] <= u <
-// knots[span + 1], the first span below the range and the last one at or above it.
-int SpanOf(const std::vector<double>& knots, int p, int n, double u) {
-  const auto first = knots.begin() + p;
-  const auto last = knots.begin() + n + 1;
-  return std::clamp(static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1, p, n);
-}
-
 // The values at x of the polynomial sum_k c[k * stride] x^k (k = 0..degree) and of its first two
 // derivatives: Horner with derivatives.
 template <typename T>
@@ -86,8 +78,12 @@ std::optional<BSplineSurfaceSpans> BSplineSurfaceSpans::From(const Geom_BSplineS
   return r;
 }
 
+void BSplineSurfaceSpans::Cover(double u, double v) {
+  if (!(u >= ulo_ && u < uhi_ && v >= vlo_ && v < vhi_)) Load(u, v);
+}
+
 void BSplineSurfaceSpans::Load(double u, double v) {
-  const int su = SpanOf(uknots_, p_, nu_ - 1, u), sv = SpanOf(vknots_, q_, nv_ - 1, v);
+  const int su = KnotSpan(uknots_, p_, u), sv = KnotSpan(vknots_, q_, v);
   const auto knot = [](const std::vector<double>& k, int i) {
     return k[static_cast<std::size_t>(i)];
   };
@@ -126,7 +122,7 @@ void BSplineSurfaceSpans::Load(double u, double v) {
 }
 
 void BSplineSurfaceSpans::D2(double u, double v, SurfaceDerivatives* d) {
-  if (!(u >= ulo_ && u < uhi_ && v >= vlo_ && v < vhi_)) Load(u, v);
+  Cover(u, v);
   const double x = u - uc_, y = v - vc_;
   // Along u, for each power of v: A_l, dA_l/du, d2A_l/du2.
   constexpr int kMax = kMaxCurveDegree + 1;
@@ -158,7 +154,7 @@ void BSplineSurfaceSpans::D2(double u, double v, SurfaceDerivatives* d) {
 }
 
 Eigen::Vector3d BSplineSurfaceSpans::Point(double u, double v) {
-  if (!(u >= ulo_ && u < uhi_ && v >= vlo_ && v < vhi_)) Load(u, v);
+  Cover(u, v);
   const double x = u - uc_, y = v - vc_;
   const auto along_u = [&](int l) {
     return Horner0(&coef_[static_cast<std::size_t>(l)], q_ + 1, p_, x);

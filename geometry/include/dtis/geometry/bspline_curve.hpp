@@ -58,6 +58,10 @@ class BSplineCurve {
 // poles are the unknowns. `knots` must be valid for some number of poles (size >= 2 degree + 2).
 int NonZeroBasis(const std::vector<double>& knots, int degree, double u, double* N);
 
+// The knot span of u for poles counted from the knots' size: knots[span] <= u < knots[span + 1],
+// the first span below the knot range, the last one at or above it.
+int KnotSpan(const std::vector<double>& knots, int degree, double u);
+
 // The degree + 1 basis functions that do not vanish in knot span `span` (knots[span] <= u <
 // knots[span + 1], or u beyond it: the span's polynomials continued) and their derivatives up to
 // order n <= degree <= kMaxCurveDegree at u: ders[k][j] is the k-th derivative of the function of

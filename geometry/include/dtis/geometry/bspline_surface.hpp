@@ -30,6 +30,7 @@ class BSplineSurfaceSpans {
 
  private:
   BSplineSurfaceSpans() = default;
+  void Cover(double u, double v);  // loads the span of (u, v) unless it is the cached one
   void Load(double u, double v);
 
   int p_ = 0, q_ = 0, nu_ = 0, nv_ = 0;  // degrees, pole counts
