@@ -16,7 +16,9 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/path_fit.hpp"
+#include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/program.hpp"
 #include "dtis/io/curve_file.hpp"
 #include "dtis/io/exports.hpp"
@@ -275,6 +277,30 @@ TEST(Compare, ThreeAxisSampleFirstPasses) {
   const io::Job job = io::ParseJob(text, path);
   ASSERT_EQ(job.surface->strategy.max_passes, 2);
   CheckCompare(job, testing::TempDir() + "dtis_compare_3x");
+}
+
+// A link rises to the face's top plus the job's clearance (the placed face's optimal bounding box,
+// found only when a link asks for it) and no higher: the highest Z of a two-pass run on the 3-axis
+// sample is that height, and the tool tip stays below it on the passes.
+TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
+  const std::string path = test::Source("samples/jobs/surface_plane_cl_3axis.toml");
+  std::string text = ReadFile(path);
+  text.insert(text.find("[link]"), "max_passes = 2\n\n");
+  const io::Job job = io::ParseJob(text, path);
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  ASSERT_EQ(r.passes, 2);
+  ASSERT_GT(r.links, 0);
+  const geometry::StepModel model = geometry::StepModel::Load(job.surface->step_file);
+  const TopoDS_Face placed = geometry::PlaceFace(
+      model.Face(job.surface->face), job.surface->rotate_deg, job.surface->translate_mm);
+  const double top = geometry::FaceBox(placed).second.z();
+  const std::vector<double>& z = r.table.columns[2];
+  ASSERT_EQ(r.table.axes[2], "Z");
+  const double highest = *std::max_element(z.begin(), z.end());
+  EXPECT_NEAR(highest, top + job.surface->clearance_mm, 1e-9);
+  EXPECT_LT(z.front(), top + 1e-9);
+  EXPECT_LT(z.back(), top + 1e-9);
 }
 
 // Two atomic outputs open at once (the tables, a run's setpoints and limiters) each keep their own

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <future>
 #include <numbers>
 
 #include "dtis/core/error.hpp"
@@ -362,7 +363,9 @@ SurfaceSetup SetUpSurface(const Job& job) {
   const geometry::FaceSurface face(placed, FaceName(spec));
   SurfaceSetup setup;
   setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
-  setup.safe_z_mm = geometry::FaceBox(placed).second.z() + spec.clearance_mm;
+  setup.safe_z_mm = std::async(std::launch::deferred, [placed, clearance = spec.clearance_mm] {
+                      return geometry::FaceBox(placed).second.z() + clearance;
+                    }).share();
   setup.clearance_mm = spec.clearance_mm;
   setup.pass_options = job.vpop;
   setup.link_options = job.vpop;
@@ -408,7 +411,7 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
     const Pose to = machine.Forward(next.rows.front().q);
     std::vector<std::unique_ptr<PathSource>> moves;
     try {
-      moves = geometry::LinkMoves(from, to, setup.safe_z_mm, setup.clearance_mm, machine,
+      moves = geometry::LinkMoves(from, to, setup.safe_z_mm.get(), setup.clearance_mm, machine,
                                   setup.link_corners);
     } catch (const Error& e) {
       throw Error("{}: linking pass {} to pass {}: {}", job_file, k + 1, k + 2, e.what());
