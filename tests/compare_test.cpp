@@ -281,7 +281,7 @@ TEST(Compare, ThreeAxisSampleFirstPasses) {
 
 // A link rises to the face's top plus the job's clearance (the placed face's optimal bounding box,
 // found only when a link asks for it) and no higher: the highest Z of a two-pass run on the 3-axis
-// sample is that height, and the tool tip stays below it on the passes.
+// sample is that height, and the run starts and ends below the face's top.
 TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
   const std::string path = test::Source("samples/jobs/surface_plane_cl_3axis.toml");
   std::string text = ReadFile(path);
