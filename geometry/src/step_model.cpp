@@ -3,9 +3,7 @@
 #include <fmt/format.h>
 
 #include <BRepAdaptor_Surface.hxx>
-#include <BRepBndLib.hxx>
 #include <BRepTools.hxx>
-#include <Bnd_Box.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Reader.hxx>
@@ -19,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <tuple>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/face_surface.hpp"
@@ -109,14 +108,7 @@ FaceInfo Describe(int index, const TopoDS_Face& face) {
   }
   BRepTools::UVBounds(face, info.u0, info.u1, info.v0, info.v1);
   info.trimmed = IsTrimmed(face, s);
-  Bnd_Box box;
-  BRepBndLib::AddOptimal(face, box, Standard_False, Standard_False);
-  if (!box.IsVoid()) {
-    double x0, y0, z0, x1, y1, z1;
-    box.Get(x0, y0, z0, x1, y1, z1);
-    info.box_min = {x0, y0, z0};
-    info.box_max = {x1, y1, z1};
-  }
+  std::tie(info.box_min, info.box_max) = FaceBox(face);
   return info;
 }
 
