@@ -67,20 +67,30 @@ std::pair<double, double> Deviation(const geometry::G1Path& path, const std::vec
   return {worst_tip, worst_top};
 }
 
-TEST(G1Path, LockCornersStayWithinTheContourToleranceAndUseIt) {
-  const auto machine =
-      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
-  // The lock's contour starts after its plunge: take the blocks after the first G1 at Z0.
-  const io::GcodeProgram program = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
+// The lock's contour, which starts after its plunge: the blocks after the first G1 at Z0, as moves
+// from `start`.
+struct LockContour {
+  Vector3d start;
   std::vector<geometry::ChainMove> moves;
-  std::vector<Vector3d> tips{program.moves[1].to};
+};
+LockContour ReadLockContour() {
+  const io::GcodeProgram program = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
+  LockContour contour{program.moves[1].to, {}};
   for (std::size_t k = 2; k + 1 < program.moves.size(); ++k) {
     geometry::ChainMove m;
     m.tip = program.moves[k].to;
     m.line = program.moves[k].line;
-    moves.push_back(m);
-    tips.push_back(m.tip);
+    contour.moves.push_back(m);
   }
+  return contour;
+}
+
+TEST(G1Path, LockCornersStayWithinTheContourToleranceAndUseIt) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const auto [start, moves] = ReadLockContour();
+  std::vector<Vector3d> tips{start};
+  for (const auto& m : moves) tips.push_back(m.tip);
   geometry::CornerOptions o;
   o.contour_tol_mm = 0.02;
   o.feed_mm_s = 50.0;
@@ -789,16 +799,9 @@ TEST(PathSource, AnArcLengthARoundingErrorFromAKnownStateIsThatState) {
                                 "line");
   const auto machine =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
-  const io::GcodeProgram program = io::ReadGcode(test::Source("samples/gcode/lock.ngc"));
-  std::vector<geometry::ChainMove> moves;
-  for (std::size_t k = 2; k + 1 < program.moves.size(); ++k) {
-    geometry::ChainMove m;
-    m.tip = program.moves[k].to;
-    m.line = program.moves[k].line;
-    moves.push_back(m);
-  }
-  test::ExpectRoundingStepsHold(
-      geometry::G1Path(program.moves[1].to, Vector3d::UnitZ(), moves, *machine), "lock G1 chain");
+  const auto [start, moves] = ReadLockContour();
+  test::ExpectRoundingStepsHold(geometry::G1Path(start, Vector3d::UnitZ(), moves, *machine),
+                                "lock G1 chain");
 }
 
 }  // namespace

@@ -98,12 +98,6 @@ TEST(MotionLaw, StopDistanceSumsPhasesLikeTheSimulation) {
   std::printf("stop distance: worst relative difference to the simulation %.3g\n", worst);
 }
 
-}  // namespace
-}  // namespace dtis::interp
-
-namespace dtis::interp {
-namespace {
-
 // StopReach is the distance the look-ahead plans a stop or a slow-down with. A motion that the law
 // cannot bring to rest (it brakes too hard to release in time) must not count as stopping short
 // of the end of the path: this state, from the last periods of the 10-degree-tilt sample's pass,
