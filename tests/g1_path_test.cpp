@@ -113,6 +113,29 @@ TEST(G1Path, LockCornersStayWithinTheContourToleranceAndUseIt) {
   EXPECT_GT(full, 5);
 }
 
+// A G1 chain's breaks are where one piece meets the next: both ends of every smoothed corner.
+TEST(G1Path, BreaksAreTheEndsOfTheBlocksAndCorners) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const auto [start, moves] = ReadLockContour();
+  geometry::CornerOptions o;
+  o.contour_tol_mm = 0.02;
+  o.feed_mm_s = 50.0;
+  const geometry::G1Path path(start, Vector3d::UnitZ(), moves, *machine, o);
+  const std::vector<double> breaks = path.Breaks(0.0, path.Length().value());
+  ASSERT_TRUE(std::is_sorted(breaks.begin(), breaks.end()));
+  for (const auto& c : path.Corners()) {
+    for (const double end : {c.s0, c.s1}) {
+      if (end <= 0.0 || end >= path.Length().value()) continue;
+      EXPECT_TRUE(std::binary_search(breaks.begin(), breaks.end(), end)) << end;
+    }
+  }
+  // Between two breaks the pose is smooth: no break lies inside a corner.
+  for (const auto& c : path.Corners()) {
+    EXPECT_TRUE(path.Breaks(c.s0, c.s1 - 1e-9 * (1.0 + c.s1)).empty());
+  }
+}
+
 // One-sided second differences of f at s, from the left and from the right.
 template <typename F>
 std::pair<Vector3d, Vector3d> SecondDerivatives(const F& f, double s, double h) {

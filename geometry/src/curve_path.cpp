@@ -51,6 +51,18 @@ CurvePath::CurvePath(BSplineCurve curve, const Eigen::Vector3d& tool_axis,
       map_(ArcLengthOf(bottom_, options)) {
   if (!(tool_axis.norm() > 0.0)) throw Error("tool axis must be a non-zero vector");
   if (!(map_.Length() > 0.0)) throw Error("curve has zero length");
+  knot_s_ = KnotArcLengths();
+}
+
+std::vector<double> CurvePath::KnotArcLengths() const {
+  const std::vector<double> knots = DistinctKnots(bottom_);
+  std::vector<double> arc;
+  double s = 0.0;
+  for (std::size_t k = 1; k + 1 < knots.size(); ++k) {
+    s += map_.Integrate(knots[k - 1], knots[k]);
+    arc.push_back(s);
+  }
+  return arc;
 }
 
 CurvePath::CurvePath(BSplineCurve bottom, BSplineCurve top, const ArcLengthOptions& options)
@@ -71,9 +83,18 @@ CurvePath::CurvePath(BSplineCurve bottom, BSplineCurve top, const ArcLengthOptio
       throw Error("top and bottom curves meet at u = {}: the tool axis is undefined there", u);
     }
   }
+  knot_s_ = KnotArcLengths();
 }
 
 PathState CurvePath::Start() const { return {0.0, bottom_.FirstParameter(), 0.0, 0}; }
+
+std::vector<double> CurvePath::Breaks(double s0, double s1) const {
+  std::vector<double> breaks;
+  for (const double s : knot_s_) {
+    if (s > s0 && s <= s1) breaks.push_back(s);
+  }
+  return breaks;
+}
 
 Pose CurvePath::PoseAt(double u) const {
   Pose pose;

@@ -738,6 +738,15 @@ void G1Path::FailBehind(double s) const {
       s, pieces_.front().s0, behind_remedy_.empty() ? "" : "; ", behind_remedy_);
 }
 
+std::vector<double> G1Path::Breaks(double s0, double s1) const {
+  if (!built_all_ && !(length_ > s1)) BuildPiecesTo(s1);
+  std::vector<double> breaks;
+  const auto first = std::upper_bound(pieces_.begin(), pieces_.end(), s0,
+                                      [](double x, const Piece& p) { return x < p.s0; });
+  for (auto it = first; it != pieces_.end() && it->s0 <= s1; ++it) breaks.push_back(it->s0);
+  return breaks;
+}
+
 long G1Path::Find(double s, long hint) const {
   if (!built_all_ && !(length_ > s)) [[unlikely]] {
     BuildPiecesTo(s);

@@ -10,6 +10,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "dtis/core/pose.hpp"
 
@@ -70,6 +71,15 @@ class PathSource {
   // whole from the start (curves, surface passes, short G-code chains) have nothing to do; a long
   // G-code chain builds its corners up to there (geometry/g1_path.hpp).
   virtual void Reach(double s) const { (void)s; }
+
+  // Arc lengths in [s0, s1] where the path's derivatives may jump (the knots of a curve, the ends
+  // of a G1 block or smoothed corner), sorted. The look-ahead planner samples the axis derivatives
+  // on either side of each (where q_sss jumps, the axis jerk does too). None by default.
+  virtual std::vector<double> Breaks(double s0, double s1) const {
+    (void)s0;
+    (void)s1;
+    return {};
+  }
 
   // The interpolator will not step back before arc length `s` again (it has handed those steps
   // over): a source built as the interpolator advances may drop what lies far enough behind.

@@ -27,6 +27,8 @@ class CurvePath final : public PathSource {
   std::optional<double> Length() const override { return map_.Length(); }
   PathSample At(const PathState& from, double s) const override;
   std::string Describe(const PathState& state) const override;
+  // The arc lengths of the curve's inner distinct knots.
+  std::vector<double> Breaks(double s0, double s1) const override;
 
   const BSplineCurve& Bottom() const { return bottom_; }
   const std::optional<BSplineCurve>& Top() const { return top_; }
@@ -39,6 +41,8 @@ class CurvePath final : public PathSource {
   std::optional<BSplineCurve> top_;
   Eigen::Vector3d axis_;
   ArcLengthMap map_;
+  std::vector<double> knot_s_;  // arc lengths of the inner distinct knots
+  std::vector<double> KnotArcLengths() const;
 };
 
 class LinePath final : public PathSource {

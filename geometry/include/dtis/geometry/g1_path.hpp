@@ -113,6 +113,8 @@ class G1Path final : public PathSource {
   void Reach(double s) const override;
   void Release(double s) const override;
   std::string Describe(const PathState& state) const override;
+  // Where one piece (block, arc, smoothed corner) meets the next.
+  std::vector<double> Breaks(double s0, double s1) const override;
 
   // Builds the chain to its end, dropping what lies behind as it goes (a windowed chain): every
   // error it holds is thrown here. The path is then only good for its length and counts.
