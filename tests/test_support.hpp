@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "dtis/core/error.hpp"
+#include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace dtis::test {
@@ -62,6 +64,24 @@ struct Collect final : interp::SetpointSink {
   std::vector<interp::Setpoint> points;
   void Accept(const interp::Setpoint& s) override { points.push_back(s); }
 };
+
+// A path planned and its setpoints checked by the independent verifier.
+struct Planned {
+  interp::VpopSummary summary;
+  interp::VerifyReport report;
+  std::vector<interp::Setpoint> points;
+};
+inline Planned PlanAndVerify(const PathSource& path, const Machine& machine,
+                             const interp::VpopOptions& o) {
+  Collect sink;
+  Planned p;
+  p.summary = interp::PlanVpop(path, machine, o, sink);
+  io::TableSink table(machine, o.period_s);
+  for (const auto& s : sink.points) table.Accept(s);
+  p.report = interp::Verify(table.Table(), machine);
+  p.points = std::move(sink.points);
+  return p;
+}
 
 // An XYZ machine with the same limits on every axis (mm, s).
 inline std::unique_ptr<Machine> Cartesian(double v, double a, double j) {

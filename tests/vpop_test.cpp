@@ -23,21 +23,10 @@ namespace {
 
 using test::Cartesian;
 
-struct Planned {
-  interp::VpopSummary summary;
-  interp::VerifyReport report;
-  std::vector<interp::Setpoint> points;
-};
+using test::Planned;
 
 Planned Plan(const PathSource& path, const Machine& machine, const interp::VpopOptions& o) {
-  test::Collect sink;
-  Planned p;
-  p.summary = interp::PlanVpop(path, machine, o, sink);
-  io::TableSink table(machine, o.period_s);
-  for (const auto& s : sink.points) table.Accept(s);
-  p.report = interp::Verify(table.Table(), machine);
-  p.points = std::move(sink.points);
-  return p;
+  return test::PlanAndVerify(path, machine, o);
 }
 
 TEST(Vpop, StraightLineMatchesTheJerkLimitedClosedForm) {
@@ -196,7 +185,9 @@ TEST(Vpop, FreeFeedOnACircleWhereTheJerkBindsPassesFasterThanTheClosedForm) {
 // to fail there ("no step forward ... even from rest"). The laws' jerk floor above the tangential
 // limit was the cause; with it fixed the case plans through in one go.
 
-void RandomCurvesPassTheVerifier(bool smooth, long cases, unsigned long seed, long only = -1) {
+void RandomCurvesPassTheVerifier(bool smooth, long cases, unsigned long seed,
+                                 interp::PlannerKind planner = interp::PlannerKind::kVpop,
+                                 long only = -1) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> coord(-10.0, 10.0), unit(0.0, 1.0);
   for (long c = 0; c < cases; ++c) {
@@ -226,6 +217,7 @@ void RandomCurvesPassTheVerifier(bool smooth, long cases, unsigned long seed, lo
     const auto machine = Cartesian(200.0 + 800.0 * unit(rng), 500.0 + 5000.0 * unit(rng),
                                    2000.0 + 50000.0 * unit(rng));
     interp::VpopOptions o;
+    o.planner = planner;
     o.feed_mm_s = 10.0 + 100.0 * unit(rng);
     o.period_s = unit(rng) < 0.5 ? 1e-3 : 2e-3;
     if (c % 3 == 0) o.tangential_jerk_mm_s3 = 1000.0 + 20000.0 * unit(rng);
@@ -258,6 +250,17 @@ TEST(Vpop, RandomSmoothCurvesAndLimitsPassTheVerifier) {
 
 TEST(Vpop, RandomCurvesWithHairpinsPassTheVerifier) {
   RandomCurvesPassTheVerifier(false, std::max(5L, test::g_count / 40), test::g_seed + 17);
+}
+
+// The same cases with the look-ahead planner.
+TEST(LookAhead, RandomSmoothCurvesAndLimitsPassTheVerifier) {
+  RandomCurvesPassTheVerifier(true, std::max(5L, test::g_count / 20), test::g_seed + 17,
+                              interp::PlannerKind::kLookAhead);
+}
+
+TEST(LookAhead, RandomCurvesWithHairpinsPassTheVerifier) {
+  RandomCurvesPassTheVerifier(false, std::max(5L, test::g_count / 40), test::g_seed + 17,
+                              interp::PlannerKind::kLookAhead);
 }
 
 TEST(Vpop, FeedNeverExceedsTheProgrammedFeed) {

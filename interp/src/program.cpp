@@ -131,6 +131,9 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     t.brake_tests += p.summary.brake_tests;
     t.evaluations += p.summary.evaluations;
     t.path_iterations += p.summary.path_iterations;
+    t.profile_grid_points += p.summary.profile_grid_points;
+    t.profile_refusals += p.summary.profile_refusals;
+    t.profile_repairs += p.summary.profile_repairs;
     t.end_s += p.summary.end_s;
     for (std::size_t l = 0; l < t.limited_by.size(); ++l)
       t.limited_by[l] += p.summary.limited_by[l];

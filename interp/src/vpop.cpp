@@ -42,6 +42,8 @@ const char* LimiterName(Limiter limiter) {
       return "back_off";
     case Limiter::kRest:
       return "rest";
+    case Limiter::kProfileLookAhead:
+      return "profile_look_ahead";
     case Limiter::kCount:
       break;
   }
@@ -54,6 +56,10 @@ std::optional<Limiter> LimiterFromName(std::string_view name) {
     if (name == LimiterName(limiter)) return limiter;
   }
   return std::nullopt;
+}
+
+const char* PlannerName(PlannerKind planner) {
+  return planner == PlannerKind::kLookAhead ? "lookahead" : "vpop";
 }
 
 bool VpopOptions::IsValid(std::string* why) const {
@@ -131,6 +137,17 @@ struct Effective {
 // The look-ahead and brake laws aim this fraction of the effective limits, so that their targets
 // fall strictly inside the axis intervals instead of on their faces (where rounding decides).
 constexpr double kLawMargin = 1.0 - 1e-7;
+
+// The look-ahead's cap is searched among the path jerks the axes allow at the current state,
+// widened by this fraction of that interval's width.
+constexpr double kJerkGive = 0.05;
+
+// Repairs of the look-ahead at one place (within a few periods' travel of the first) before the
+// planner backs off instead.
+constexpr int kMaxRepairsHere = 8;
+// Repairs of the look-ahead on one path before every further dead end is backed off from.
+constexpr long kMaxRepairs = 200;
+inline double kRepairNeighbourhood(double v, double dt) { return std::max(20.0 * v * dt, 1e-3); }
 
 // Times in a row the planner may come back to rest at the same arc length, its step from there
 // halved each time (2^-30 of the first), before it reports that no step forward is possible.
@@ -347,6 +364,16 @@ class Planner {
   // empty when it could not be planned. Those behind the released steps are dropped (Commit).
   std::map<double, std::vector<std::pair<double, double>>> curves_;
   int stuck_count_ = 0;
+  // planner = kLookAhead
+  std::optional<ViableFeeds> profile_;
+  bool Repair(long j);
+  double last_repair_s_ = -INFINITY;
+  int repairs_here_ = 0;
+  // The largest arc length in [lo, target] whose state the look-ahead holds viable, or, when
+  // none is, the one closest to viable (counted as a refusal).
+  // `floored`, when given, receives `target` raised to the releasable floor.
+  double ProfileCap(const History& h, double lo, double hi, double target,
+                    double* floored = nullptr);
 };
 
 [[noreturn]] void Planner::FailAt(const Step& where, const std::string& what) const {
@@ -631,7 +658,9 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
   const double reach = s0 + 2.0 * (horizon - s0) + o_.feed_mm_s * dt_;
   path_.Reach(reach);
   if (!length_) length_ = path_.Length();
-  const auto slow = path_.SlowPoints();
+  // The look-ahead planner's profile holds the slow points; the paper's planner plans their
+  // backward limits here.
+  const auto slow = profile_ ? std::span<const SlowPoint>() : path_.SlowPoints();
   for (auto it = std::upper_bound(slow.begin(), slow.end(), s0,
                                   [](double s, const SlowPoint&p) { return s < p.s; });
        it != slow.end() && it->s < reach; ++it) {
@@ -666,7 +695,14 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
     curve_target = std::min(curve_target, lo);
   }
   if (length_ && horizon >= *length_) {
-    const double a = ArriveBy(h, a_hi, jerk, acceleration, *length_, 0.0);
+    double j_end = jerk, a_end = acceleration;
+    if (profile_) {
+      // The stop law with the least capacity the axes give the path before its end (the law
+      // lands exactly at rest; the capacity at this point alone can be more than the end has).
+      j_end = std::min(j_end, profile_->MinJerkCap(s0, *length_) * kLawMargin);
+      a_end = std::min(a_end, profile_->MinAccelerationCap(s0, *length_) * kLawMargin);
+    }
+    const double a = ArriveBy(h, a_hi, j_end, a_end, *length_, 0.0);
     if (a < a_hi) a_hi = a, by = {Limiter::kEndLookAhead, -1};
   }
   const double target = s0 + (v0 + a_hi * dt_) * dt_;
@@ -825,6 +861,97 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
   return true;
 }
 
+double Planner::ProfileCap(const History& h, double lo, double hi, double target, double* floored) {
+  const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
+  const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
+  // The next step as a function of its path jerk j (backward differences), and the slack of the
+  // continuous state it ends in: the cubic through the last four arc lengths has, at its end, feed
+  // v + a dt / 2 + j dt^2 / 3 and acceleration a + j dt.
+  const double dt3 = dt_ * dt_ * dt_;
+  const auto step = [&](double j) { return s0 + (v0 + (a0 + j * dt_) * dt_) * dt_; };
+  const auto slack = [&](double x) {
+    const double v = (x - s0) / dt_, a = (v - v0) / dt_, j = (a - a0) / dt_;
+    return profile_->Slack(x, v + a * dt_ / 2.0 + j * dt_ * dt_ / 3.0, a + j * dt_);
+  };
+  // The jerks the axes can give the path here (where the path turns fast, the tangential jerk
+  // that holds the axes within their limits may be many times any axis limit).
+  double jlo, jhi;
+  profile_->JerkRange(s0, v0 + a0 * dt_ / 2.0, a0, &jlo, &jhi);
+  const double width = std::max(jhi - jlo, 1.0);
+  // Never a state braked so hard that its deceleration cannot be released before the feed
+  // reaches zero (the viable set's lower side, which the look-ahead's upper boundary does not
+  // hold), whatever asks for it.
+  const double release_jerk = profile_->JerkCap(s0) * kReleaseJerkFraction;
+  const auto releasable = [&](double x) {
+    const double v = (x - s0) / dt_, a = (v - v0) / dt_;
+    return v >= ReleaseGain(-a, release_jerk, dt_);
+  };
+  // Only the jerks the axes allow (give or take the gap between the continuous model and the
+  // sampled motion): the exact step would not take a step outside them.
+  const double give = kJerkGive * width;
+  const double top = std::min(hi, step(jhi + give)), bottom = std::max(lo, step(jlo - give));
+  // The least releasable step between them (a longer step brakes less); none: the target stands.
+  double least = bottom;
+  if (!releasable(top)) {
+    least = INFINITY;
+  } else if (!releasable(bottom)) {
+    double good = top, bad = bottom;
+    for (int k = 0; k < 50 && good - bad > 1e-13 * (1.0 + std::abs(good)); ++k) {
+      const double mid = 0.5 * (good + bad);
+      if (releasable(mid)) {
+        good = mid;
+      } else {
+        bad = mid;
+      }
+    }
+    least = good;
+  }
+  if (floored && target < least && std::isfinite(least)) *floored = target = least;
+  double x_bad = std::min(target, top);
+  double f_bad = slack(x_bad);
+  if (f_bad >= 0.0 || least >= x_bad) return x_bad;
+  // Walk down in jerk until the state is viable, then close in on the boundary.
+  const double floor = least;
+  double x_good = x_bad, f_good = f_bad, best = x_bad, f_best = f_bad;
+  const double j_bad = (x_bad - s0) / dt3 - (v0 / (dt_ * dt_) + a0 / dt_);
+  bool found = false;
+  for (int k = 1; k <= 16; ++k) {
+    const double x = std::max(floor, step(j_bad - width * k / 8.0));
+    const double f = slack(x);
+    if (f >= 0.0) {
+      x_good = x, f_good = f;
+      found = true;
+      break;
+    }
+    if (f > f_best) f_best = f, best = x;
+    x_bad = x, f_bad = f;
+    if (x <= floor) break;
+  }
+  if (!found) {
+    // Nothing viable: the state closest to the boundary (a refusal; the exact step still holds
+    // every limit).
+    ++summary_.profile_refusals;
+    return best;
+  }
+  int side = 0;
+  for (int k = 0; k < 40 && x_bad - x_good > 1e-12 * (1.0 + std::abs(x_bad)); ++k) {
+    double x = x_good + (x_bad - x_good) * f_good / (f_good - f_bad);
+    if (!(x > x_good && x < x_bad)) x = 0.5 * (x_good + x_bad);
+    const double f = slack(x);
+    if (f >= 0.0) {
+      x_good = x, f_good = f;
+      if (side == -1) f_bad *= 0.5;
+      side = -1;
+    } else {
+      x_bad = x, f_bad = f;
+      if (side == 1) f_good *= 0.5;
+      side = 1;
+    }
+    if (f_good < 1e-9 * (1.0 + std::abs(v0))) break;
+  }
+  return x_good;
+}
+
 bool Planner::Produce(const History& h, Mode mode, Step* out) {
   const Interval t = Tangential(h);
   if (t.lo > t.hi) return false;
@@ -840,6 +967,14 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
     if (soft < target) {
       target = std::max(soft, t.lo);
       by = soft > t.lo ? soft_by : t.lo_by;
+    }
+    if (profile_ && !AtRest(h)) {
+      // (From rest, the first step is a jerk's worth: it can always be braked again.)
+      const double cap = ProfileCap(h, t.lo, t.hi, target, &target);
+      if (cap < target) {
+        target = std::max(cap, t.lo);
+        by = {Limiter::kProfileLookAhead, -1};
+      }
     }
     if (AtRest(h) && h.p0->s == last_stuck_s_) {
       // Back at rest where the last step from rest could not be carried on: the look-ahead laws
@@ -865,6 +1000,41 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
   out->limiter = out->s == target ? by : axis_by;
   if (out->s == h.p0->s && AtRest(h)) out->limiter = {Limiter::kRest, -1};
   return true;
+}
+
+// The look-ahead held the state at step j viable, yet the exact step finds no step from it: the
+// continuous model missed something there. Plan that stretch more cautiously and go back to the
+// latest step the repaired look-ahead holds viable (one still open). False when the same place
+// has been repaired too often or no step can be gone back to: the caller backs off instead.
+bool Planner::Repair(long j) {
+  if (summary_.profile_repairs >= kMaxRepairs) return false;
+  const double s = At(j).s;
+  const double v = (s - At(j - 1).s) / dt_;
+  if (std::abs(s - last_repair_s_) <= kRepairNeighbourhood(v, dt_)) {
+    if (++repairs_here_ > kMaxRepairsHere) return false;
+  } else {
+    last_repair_s_ = s;
+    repairs_here_ = 1;
+  }
+  // Reach: the stretch a brake from this feed covers, at least a few periods of it.
+  const double reach = std::max(50.0 * v * dt_, 0.05);
+  profile_->Repair(s, reach);
+  // Not below the last step whose stop to rest is proven: that proof runs through the steps
+  // after it, which going back would discard.
+  const long first = std::max({committed_, base_ + 3, safe_});
+  for (long m = j - 1; m >= first; --m) {
+    const Step& p0 = At(m);
+    const double s1 = At(m - 1).s, s2 = At(m - 2).s, s3 = At(m - 3).s;
+    const double v0 = (p0.s - s1) / dt_, v1 = (s1 - s2) / dt_, v2 = (s2 - s3) / dt_;
+    const double a0 = (v0 - v1) / dt_, a1 = (v1 - v2) / dt_, jj = (a0 - a1) / dt_;
+    if (profile_->Slack(p0.s, v0 + a0 * dt_ / 2.0 + jj * dt_ * dt_ / 3.0, a0 + jj * dt_) >= 0.0) {
+      steps_.resize(static_cast<std::size_t>(m - base_ + 1));
+      hint_ = std::min(hint_, m);
+      ++summary_.profile_repairs;
+      return true;
+    }
+  }
+  return false;
 }
 
 // Runs the brake law from step m (steps after m ignored) until rest. On success, `first` is its
@@ -1066,6 +1236,19 @@ VpopSummary Planner::Run() {
     committed_ = 0;
   }
   steps_.push_back(start);
+  if (o_.planner == PlannerKind::kLookAhead) {
+    LookAheadLimits pl;
+    pl.feed = o_.feed_mm_s;
+    pl.tangential_acceleration =
+        std::isfinite(o_.tangential_acceleration_mm_s2) ? o_.tangential_acceleration_mm_s2 : 1e12;
+    pl.tangential_jerk = std::isfinite(o_.tangential_jerk_mm_s3) ? o_.tangential_jerk_mm_s3 : 1e15;
+    for (int i = 0; i < n_; ++i) {
+      pl.v[i] = limits_[i].v;
+      pl.a[i] = limits_[i].a;
+      pl.j[i] = limits_[i].j;
+    }
+    profile_.emplace(path_, machine_, pl, o_.look_ahead);
+  }
   const long check_every =
       static_cast<long>(std::min<std::size_t>(o_.commit_horizon / 4, 1L << 40));
 
@@ -1073,10 +1256,14 @@ VpopSummary Planner::Run() {
     const long j = Last();
     const History h = HistoryAt(j);
     if (Finished(h)) break;
+    if (profile_) {
+      profile_->Advance(h.p0->s, h.p0->state, h.p0->q, At(std::max(base_, committed_ - 3)).s);
+      summary_.profile_grid_points = profile_->GridPoints();
+    }
     Step next;
     if (Produce(h, Mode::kGreedy, &next)) {
       steps_.push_back(next);
-    } else {
+    } else if (!profile_ || !Repair(j)) {
       BackOff(j + 1);
     }
     if (static_cast<std::size_t>(Last() - committed_) > o_.commit_horizon) {

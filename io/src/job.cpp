@@ -268,6 +268,13 @@ Job ReadJob(TomlTable& root) {
     job.interpolator = k == "vpop"      ? InterpolatorKind::kVpop
                        : k == "taylor1" ? InterpolatorKind::kTaylor1
                                         : InterpolatorKind::kTaylor2;
+    if (auto pl = in->OptionalChoice("planner", {"lookahead", "vpop"})) {
+      if (job.interpolator != InterpolatorKind::kVpop) {
+        in->Fail("planner", "only used by kind = \"vpop\"");
+      }
+      job.vpop.planner =
+          *pl == "vpop" ? interp::PlannerKind::kVpop : interp::PlannerKind::kLookAhead;
+    }
     if (auto f = in->OptionalPositiveNumber("limit_fraction")) {
       if (*f > 1.0)
         in->Fail("limit_fraction", fmt::format("expected a number in (0, 1], got {}", *f));
@@ -604,6 +611,11 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   const double rt = r.compute_s > 0 ? r.verify.motion_time_s / r.compute_s : 0.0;
   out += fmt::format("compute time     {:.6f} s ({:.3g}x real time)\n", r.compute_s, rt);
   if (job.interpolator == InterpolatorKind::kVpop) {
+    if (job.vpop.planner == interp::PlannerKind::kLookAhead) {
+      out +=
+          fmt::format("look-ahead       {} grid points, {} repairs, {} refusals\n",
+                      r.vpop.profile_grid_points, r.vpop.profile_repairs, r.vpop.profile_refusals);
+    }
     out += fmt::format("back-offs        {} ({} brake tests), {} evaluations\n", r.vpop.back_offs,
                        r.vpop.brake_tests, r.vpop.evaluations);
     out += "limited by      ";

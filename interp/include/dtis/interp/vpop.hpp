@@ -26,12 +26,26 @@
 
 #include "dtis/core/machine.hpp"
 #include "dtis/core/path_source.hpp"
+#include "dtis/interp/viable_feeds.hpp"
 
 namespace dtis::interp {
 
+// How the exact step looks ahead.
+enum class PlannerKind : std::uint8_t {
+  // The paper's: the greedy step learns of a feed valley by failing in it, and the dichotomy of
+  // §2.3 backs off to the latest step from which a brake gets through.
+  kVpop,
+  // The exact step capped by a look-ahead of the viable feeds (profile.hpp); the paper's back-off
+  // stays as the last resort.
+  kLookAhead,
+};
+const char* PlannerName(PlannerKind planner);
+
 struct VpopOptions {
-  double period_s = 1e-3;  // dt: setpoints are exactly this far apart, s
-  double feed_mm_s = 0.0;  // programmed feed F, the upper bound of (s_{j+1} - s_j) / dt, mm/s
+  PlannerKind planner = PlannerKind::kVpop;
+  LookAheadOptions look_ahead;  // planner = kLookAhead
+  double period_s = 1e-3;       // dt: setpoints are exactly this far apart, s
+  double feed_mm_s = 0.0;       // programmed feed F, the upper bound of (s_{j+1} - s_j) / dt, mm/s
   // Tangential acceleration and jerk bounds (Eq. 6 on s), mm/s^2 and mm/s^3; infinity: none.
   double tangential_acceleration_mm_s2 = std::numeric_limits<double>::infinity();
   double tangential_jerk_mm_s3 = std::numeric_limits<double>::infinity();
@@ -80,6 +94,7 @@ enum class Limiter : std::uint8_t {
   kAxisJerk,
   kBackOff,  // a brake step chosen by the dichotomy
   kRest,
+  kProfileLookAhead,  // the largest step whose state stays viable (planner = kLookAhead)
   kCount
 };
 const char* LimiterName(Limiter limiter);
@@ -124,6 +139,14 @@ struct VpopSummary {
   long brake_tests = 0;        // brake-to-rest sequences tried by the dichotomies
   long evaluations = 0;        // pose + inverse kinematics evaluations
   long path_iterations = 0;    // Newton iterations reported by the path source
+  // planner = kLookAhead: grid points of the look-ahead sampled, and steps for which no arc
+  // length within the exact constraints kept the state viable (the one closest to it was taken).
+  long profile_grid_points = 0;
+  long profile_refusals = 0;
+  // planner = kLookAhead: dead ends met on a state the look-ahead held viable, each repaired by
+  // planning that stretch more cautiously and stepping back to a viable state (back-offs count
+  // the paper's dichotomy, the last resort).
+  long profile_repairs = 0;
   std::array<long, static_cast<int>(Limiter::kCount)> limited_by{};  // steps per limiter kind
 };
 

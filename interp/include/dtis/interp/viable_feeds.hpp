@@ -1,0 +1,159 @@
+// The look-ahead of the look-ahead planner: the feeds from which the path ahead can still be
+// followed within every limit, computed on an arc-length grid ahead of the exact step.
+//
+// Ahead of the planner, exact poses on an arc-length grid are mapped through the machine, and each
+// grid point keeps the axis derivatives q_s, q_ss, q_sss (central differences of exact axis
+// positions; one-sided on either side of a point where the path's derivatives jump). Along the
+// path, with tangential feed v, acceleration a and jerk j, axis i moves with
+//   velocity q_s v,  acceleration q_ss v^2 + q_s a,  jerk q_sss v^3 + 3 q_ss v a + q_s j,
+// so a state (v, a) at arc length s is admissible when every axis velocity and acceleration is
+// within its limit and the jerk intervals of the axes (each an interval of j) intersect.
+//
+// A single feed v(s) cannot say whether a state can still be brought through what lies ahead:
+// that depends on the acceleration too (at 80 mm/s, braking at 600 mm/s^2 reaches a corner in
+// time where accelerating at 200 mm/s^2 does not). The profile is therefore the viable set itself,
+// the states (v, a) at each grid point from which a motion within every limit exists to rest at
+// the end of the window, stored as its upper boundary v_max(a). It is computed by a backward pass
+// (reachability, as in TOPP-RA, one order higher): between two grid points the tangential jerk is
+// held constant, so a boundary point of the next grid point flows back along the extreme jerk
+// that keeps it viable (the characteristics of the boundary), points that would leave the
+// admissible set are clipped to it, and a point between two others is found by flowing back an
+// interpolated point. Points are moved, not resampled, so the boundary does not diffuse along the
+// hundreds of grid points of a stretch.
+//
+// The exact step (vpop.hpp) then takes the largest next arc length whose exact axis positions lie
+// in every constraint interval and whose state stays inside this boundary. The boundary is a
+// continuous-time model planned at a fraction of every limit; the exact step holds the limits.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <vector>
+
+#include "dtis/core/machine.hpp"
+#include "dtis/core/path_source.hpp"
+
+namespace dtis::interp {
+
+struct LookAheadOptions {
+  // The look-ahead plans against this fraction of every axis limit, so that the exact step, at
+  // 100 %, has room for the difference between the continuous model and the sampled motion.
+  double limit_fraction = 0.99;
+  // Grid spacing in time at the feed the boundary allows: a constant jerk is held this long.
+  double node_time_s = 4e-3;
+  // Grid spacing bounds, mm. Where the path bends, the spacing also shrinks so that q_ss and
+  // q_sss change little between two grid points.
+  double max_spacing_mm = 0.5;
+  double min_spacing_mm = 1e-3;
+  // Acceleration resolution of the boundary, as a fraction of the largest tangential acceleration
+  // the axes allow at the grid point.
+  double boundary_resolution = 0.1;
+  // The look-ahead ends with the states that come to rest within this distance past the end of
+  // its grid, mm: there the exact step's own stop law (motion_law.hpp) lands the motion at rest,
+  // and a continuous boundary ending exactly at rest would disagree with it by a hair and stop the
+  // motion short of the end.
+  double landing_mm = 0.01;
+};
+
+// Limits along the path (mm, s) and of each axis (mm or rad, s), as the exact step plans them.
+struct LookAheadLimits {
+  double feed = 0.0, tangential_acceleration = 0.0, tangential_jerk = 0.0;
+  double v[kMaxAxes] = {}, a[kMaxAxes] = {}, j[kMaxAxes] = {};
+};
+
+class ViableFeeds {
+ public:
+  ViableFeeds(const PathSource& path, const Machine& machine, const LookAheadLimits& limits,
+              const LookAheadOptions& options);
+
+  // The planner is at arc length `s` (state `state`, axis positions `q`): the grid covers the
+  // path from there to at least a window ahead, or to the end of the path. Throws dtis::Error
+  // when the path cannot be followed there (the path source fails, an axis leaves its travel).
+  // The grid behind `keep` is dropped (the planner will not step back before it).
+  void Advance(double s, const PathState& state, const AxisVector& q, double keep);
+
+  // How far the state (v, a) at arc length s lies inside the viable set, as a feed (mm/s):
+  // >= 0 inside. v and a are the continuous-time feed and acceleration at s.
+  double Slack(double s, double v, double a) const;
+
+  // Whether the state (v, a) at arc length s is admissible: every axis velocity and acceleration
+  // within its limit and the axes' jerk intervals intersecting (the grid point at or before s).
+  bool Admissible(double s, double v, double a) const;
+
+  // The tangential jerks the axes allow at arc length s in the state (v, a), at their full limits
+  // (the exact step's), or wide when the state is not admissible.
+  void JerkRange(double s, double v, double a, double* lo, double* hi) const;
+
+  // The largest tangential jerk the axes allow at arc length s (their limits over |q_s|), and the
+  // least of it, and of the tangential acceleration they allow, over [s0, s1] on the grid.
+  double JerkCap(double s) const;
+  double MinJerkCap(double s0, double s1) const;
+  double MinAccelerationCap(double s0, double s1) const;
+
+  // The exact step found no step from a state this profile held viable near arc length s (its
+  // continuous model missed something there): plan more cautiously around s, by tightening the
+  // limits of the grid points within `reach` mm of it, and recompute the boundaries behind.
+  void Repair(double s, double reach);
+
+  // Where the grid ends (rest is planned there), mm.
+  double End() const;
+  long GridPoints() const { return grid_points_; }  // sampled so far
+
+ private:
+  struct Point {
+    double a, v;
+  };
+  struct Node {
+    double s = 0.0;
+    AxisVector d1, d2, d3;  // dq/ds, d2q/ds2, d3q/ds3 on the side towards the next node
+    AxisVector q;           // exact axis positions
+    PathState state;
+    double feed_cap = 0.0;          // the tangential feed and the slow points at this arc length
+    double acceleration_cap = 0.0;  // largest tangential acceleration the axes allow (a guide)
+    double jerk_cap = 0.0;          // largest tangential jerk the axes allow (a guide)
+    bool break_after = false;       // the path's derivatives jump between this node and the next
+    double margin = 1.0;            // fraction of the limits planned with here (repairs lower it)
+    std::vector<Point> boundary;    // v_max(a), sorted by a
+  };
+
+  // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false.
+  bool Admissible(const Node& n, double v, double a, double* lo, double* hi) const;
+  // The largest v' <= v with (v', a) admissible at `n`; -1 if none.
+  double Clip(const Node& n, double a, double v) const;
+  // v_max(a) of a boundary, -1 outside it: the chords between its points (they read a concave
+  // boundary low, never high).
+  static double Boundary(const std::vector<Point>& b, double a);
+  // The monotone cubic between points i and i + 1 of b at a (to tell where a chord reads low).
+  static double Curved(const std::vector<Point>& b, std::size_t i, double a);
+  // A new boundary point of n near acceleration a (v_guess: the feed there, roughly).
+  Point Spawn(const Node& n, const Node& next, double a, double v_guess, double peak_a,
+              double t) const;
+  // The slack of (v, a) at arc length s on node n's stretch, towards node `next`.
+  double SlackTowards(const Node& n, double s, const Node& next, double v, double a) const;
+  // The boundary at the end of the grid (rest there).
+  std::vector<Point> TerminalBoundary(const Node& n) const;
+  // The boundary of `n` from that of `next`.
+  void Propagate(Node* n, const Node& next) const;
+  // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a).
+  double Bisect(const Node& n, const Node& next, double a) const;
+
+  // The node at s; `side` < 0: derivatives of the piece before s, > 0: after it, 0: central.
+  Node Sample(double s, const PathState& hint, const AxisVector& q_hint, int side) const;
+  // The grid spacing at n, the grid ending at `end` (rest).
+  double Spacing(const Node& n, double end) const;
+  // Samples the path from the last node to `to` and recomputes the boundaries backward.
+  void Extend(double to);
+
+  const PathSource& path_;
+  const Machine& machine_;
+  LookAheadLimits limits_;
+  LookAheadOptions options_;
+  int n_axes_ = 0;
+  double window_ = 0.0;  // mm ahead of the planner
+  std::optional<double> length_;
+  std::deque<Node> nodes_;
+  long grid_points_ = 0;
+};
+
+}  // namespace dtis::interp

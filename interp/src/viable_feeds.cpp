@@ -1,0 +1,664 @@
+#include "dtis/interp/viable_feeds.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "dtis/core/error.hpp"
+#include "dtis/interp/motion_law.hpp"
+
+namespace dtis::interp {
+namespace {
+
+// The period the stop law is reckoned in (the grid's time is continuous; the law's stops are
+// sums over periods of this length).
+constexpr double kLawPeriod = 1e-3;
+
+// A repair plans the grid points near a dead end with this fraction of their limits (again at
+// each repair there), down to kMinRepairMargin.
+constexpr double kRepairFactor = 0.97;
+constexpr double kMinRepairMargin = 0.5;
+
+// A chord between two boundary points may read the boundary this much low (relative), no more.
+constexpr double kChordTolerance = 2e-4;
+
+// The time t > 0 in which a motion starting with feed v, acceleration a and constant jerk j
+// covers the distance h (v t + a t^2 / 2 + j t^3 / 6 = h, the first root), or NaN when it comes to
+// rest first. Newton from h / v.
+double TimeToCover(double v, double a, double j, double h) {
+  double t = v > 1e-9 ? h / v : std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+  for (int it = 0; it < 40; ++it) {
+    const double f = t * (v + t * (a / 2.0 + t * j / 6.0)) - h;
+    const double df = v + t * (a + t * j / 2.0);
+    if (df <= 1e-12) {
+      t *= 0.5;
+      continue;
+    }
+    double next = t - f / df;
+    if (next <= 0.0) next = 0.5 * t;
+    const bool done = std::abs(next - t) <= 1e-13 * t;
+    t = next;
+    if (done) break;
+  }
+  if (std::abs(t * (v + t * (a / 2.0 + t * j / 6.0)) - h) > 1e-9 * h) return NAN;
+  // The feed must not turn negative on the way (its minimum is at t = -a / j).
+  const auto feed = [&](double x) { return v + x * (a + x * j / 2.0); };
+  if (feed(t) < 0.0) return NAN;
+  if (j != 0.0) {
+    const double tm = -a / j;
+    if (tm > 0.0 && tm < t && feed(tm) < 0.0) return NAN;
+  }
+  return t;
+}
+
+// A constant jerk j held from (v, a) over the distance h: the state where it ends. False when the
+// motion comes to rest (or would turn back) before covering h.
+bool Forward(double v, double a, double j, double h, double* v2, double* a2) {
+  const double t = TimeToCover(v, a, j, h);
+  if (std::isnan(t)) return false;
+  *v2 = v + t * (a + t * j / 2.0);
+  *a2 = a + j * t;
+  return true;
+}
+
+// The state a constant jerk j held over the distance h came from, ending at (v2, a2): the same
+// motion run backwards in time (feed v2, acceleration -a2, jerk j).
+bool Backward(double v2, double a2, double j, double h, double* v, double* a) {
+  const double t = TimeToCover(v2, -a2, j, h);
+  if (std::isnan(t)) return false;
+  *v = v2 + t * (-a2 + t * j / 2.0);
+  *a = a2 - j * t;
+  return true;
+}
+
+}  // namespace
+
+ViableFeeds::ViableFeeds(const PathSource& path, const Machine& machine,
+                         const LookAheadLimits& limits, const LookAheadOptions& options)
+    : path_(path), machine_(machine), limits_(limits), options_(options) {
+  n_axes_ = machine.AxisCount();
+  for (int i = 0; i < n_axes_; ++i) {
+    limits_.v[i] *= options_.limit_fraction;
+    limits_.a[i] *= options_.limit_fraction;
+    limits_.j[i] *= options_.limit_fraction;
+  }
+  // The look-ahead must see further than the longest stop: from the feed, with the weakest axis'
+  // acceleration and jerk (a path along an axis, the worst case for linear axes; rotary-dominated
+  // stretches lengthen the window as they are met, Extend).
+  double amin = INFINITY, jmin = INFINITY;
+  for (int i = 0; i < n_axes_; ++i) {
+    if (machine.Axes()[static_cast<std::size_t>(i)].rotary) continue;
+    amin = std::min(amin, limits_.a[i]);
+    jmin = std::min(jmin, limits_.j[i]);
+  }
+  amin = std::min(amin, limits_.tangential_acceleration);
+  jmin = std::min(jmin, limits_.tangential_jerk);
+  const double f = limits_.feed;
+  const double stop =
+      std::isfinite(amin) && std::isfinite(jmin)
+          ? f * std::max(std::sqrt(f / jmin), f / (2.0 * amin) + amin / (2.0 * jmin))
+          : 10.0;
+  window_ = std::max(6.0 * stop, 20.0);
+}
+
+double ViableFeeds::End() const { return nodes_.empty() ? 0.0 : nodes_.back().s; }
+
+bool ViableFeeds::Admissible(const Node& n, double v, double a, double* lo, double* hi) const {
+  const double m = n.margin;
+  if (!(v >= 0.0) || v > n.feed_cap * m || std::abs(a) > limits_.tangential_acceleration * m) {
+    return false;
+  }
+  *lo = -limits_.tangential_jerk * m;
+  *hi = limits_.tangential_jerk * m;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double g = n.d1[i];
+    if (std::abs(g) * v > limits_.v[i] * m) return false;
+    if (std::abs(n.d2[i] * v * v + g * a) > limits_.a[i] * m) return false;
+    const double c = v * (n.d3[i] * v * v + 3.0 * n.d2[i] * a);
+    const double J = limits_.j[i] * m;
+    if (std::abs(g) < 1e-12) {
+      if (std::abs(c) > J) return false;
+      continue;
+    }
+    double l = (-J - c) / g, h = (J - c) / g;
+    if (g < 0.0) std::swap(l, h);
+    *lo = std::max(*lo, l);
+    *hi = std::min(*hi, h);
+  }
+  return *lo <= *hi;
+}
+
+double ViableFeeds::Clip(const Node& n, double a, double v) const {
+  double lo, hi;
+  // The velocity caps are closed forms.
+  v = std::min(v, n.feed_cap * n.margin);
+  for (int i = 0; i < n_axes_; ++i) {
+    const double g = std::abs(n.d1[i]);
+    if (g > 0.0) v = std::min(v, limits_.v[i] * n.margin / g);
+  }
+  if (Admissible(n, v, a, &lo, &hi)) return v;
+  double good = -1.0, bad = v;
+  for (int k = 1; k <= 12; ++k) {
+    const double x = v * std::pow(0.6, k);
+    if (Admissible(n, x, a, &lo, &hi)) {
+      good = x;
+      break;
+    }
+    bad = x;
+  }
+  if (good < 0.0) return Admissible(n, 0.0, a, &lo, &hi) ? 0.0 : -1.0;
+  for (int it = 0; it < 24 && bad - good > 1e-9 * bad; ++it) {
+    const double mid = 0.5 * (good + bad);
+    if (Admissible(n, mid, a, &lo, &hi)) {
+      good = mid;
+    } else {
+      bad = mid;
+    }
+  }
+  return good;
+}
+
+double ViableFeeds::Boundary(const std::vector<Point>& b, double a) {
+  if (b.empty() || a < b.front().a || a > b.back().a) return -1.0;
+  const auto it =
+      std::upper_bound(b.begin(), b.end(), a, [](double x, const Point& p) { return x < p.a; });
+  if (it == b.end()) return b.back().v;
+  if (it == b.begin()) return b.front().v;
+  const Point& r = *it;
+  const Point& l = *(it - 1);
+  return l.v + (a - l.a) / (r.a - l.a) * (r.v - l.v);
+}
+
+double ViableFeeds::Curved(const std::vector<Point>& b, std::size_t i, double a) {
+  // Monotone cubic (Fritsch and Carlson) between points i and i + 1.
+  const Point& l = b[i];
+  const Point& r = b[i + 1];
+  const double h = r.a - l.a;
+  const double d = (r.v - l.v) / h;
+  const auto slope = [&](std::size_t k) {
+    if (k == 0 || k + 1 >= b.size()) return d;
+    const double d0 = (b[k].v - b[k - 1].v) / (b[k].a - b[k - 1].a);
+    const double d1 = (b[k + 1].v - b[k].v) / (b[k + 1].a - b[k].a);
+    if (d0 * d1 <= 0.0) return 0.0;
+    const double h0 = b[k].a - b[k - 1].a, h1 = b[k + 1].a - b[k].a;
+    const double w0 = 2.0 * h1 + h0, w1 = h1 + 2.0 * h0;
+    return (w0 + w1) / (w0 / d0 + w1 / d1);
+  };
+  const double m0 = slope(i) * h, m1 = slope(i + 1) * h;
+  const double t = (a - l.a) / h, t2 = t * t, t3 = t2 * t;
+  return (2.0 * t3 - 3.0 * t2 + 1.0) * l.v + (t3 - 2.0 * t2 + t) * m0 +
+         (-2.0 * t3 + 3.0 * t2) * r.v + (t3 - t2) * m1;
+}
+
+double ViableFeeds::SlackTowards(const Node& n, double s, const Node& next, double v,
+                                 double a) const {
+  const auto& b = next.boundary;
+  if (b.empty()) return -v - 1.0;
+  // Outside the boundary's acceleration range: how far, as a feed (a guide for the search of the
+  // least violation, not a measure).
+  const auto outside = [&](double a2, double v2) {
+    if (a2 < b.front().a) return b.front().v - v2 - 1e-2 * (b.front().a - a2);
+    return b.back().v - v2 - 1e-2 * (a2 - b.back().a);
+  };
+  double lo, hi;
+  if (!Admissible(n, v, a, &lo, &hi)) {
+    const double c = Clip(n, a, v);
+    return c >= 0.0 ? c - v : -v - 1.0;
+  }
+  // Braked so hard that the feed runs out before the deceleration is released: not viable
+  // whatever lies ahead (the viable set's lower side).
+  if (a < 0.0) {
+    const double need = a * a / (2.0 * n.jerk_cap);
+    if (v < need) return v - need;
+  }
+  const double h = next.s - s;
+  if (h <= 0.0) {
+    const double cap = Boundary(b, a);
+    return cap >= 0.0 ? cap - v : outside(a, v);
+  }
+  // The peak of the next boundary: aim the acceleration there.
+  double peak_a = b.front().a, peak_v = b.front().v;
+  for (const Point& p : b) {
+    if (p.v > peak_v) peak_v = p.v, peak_a = p.a;
+  }
+  const double t = h / std::max(v, 1e-9);
+  double best = -INFINITY;
+  for (const double j : {std::clamp((peak_a - a) / t, lo, hi), lo, hi}) {
+    double v2, a2;
+    if (!Forward(v, a, j, h, &v2, &a2)) {
+      // Comes to rest before the next grid point: viable if the stop law gets there at rest.
+      const StopDistance d = StopDistanceFrom(v, a, n.jerk_cap, n.acceleration_cap, 1e-4);
+      if (!d.reverses && d.distance <= h) return 0.0;
+      continue;
+    }
+    const double cap = Boundary(b, a2);
+    best = std::max(best, cap >= 0.0 ? cap - v2 : outside(a2, v2));
+  }
+  return best;
+}
+
+double ViableFeeds::Slack(double s, double v, double a) const {
+  if (nodes_.size() < 2) return -v - 1.0;
+  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
+                             [](double x, const Node& n) { return x < n.s; });
+  if (it == nodes_.begin()) ++it;
+  if (it == nodes_.end()) {
+    const Node& last = nodes_.back();
+    const double cap = Boundary(last.boundary, a);
+    return cap >= 0.0 ? cap - v : -v - 1.0;
+  }
+  const Node& next = *it;
+  const Node& here = *(it - 1);
+  return SlackTowards(here, s, next, v, a);
+}
+
+double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
+  const double top = Clip(n, a, n.feed_cap);
+  if (top < 0.0) return -1.0;
+  // A braking state must keep the feed its release takes away.
+  if (a < 0.0 && top < a * a / (2.0 * n.jerk_cap)) return -1.0;
+  if (SlackTowards(n, n.s, next, top, a) >= 0.0) return top;
+  double good = -1.0, bad = top;
+  for (int k = 1; k <= 16; ++k) {
+    const double x = top * std::pow(0.6, k);
+    if (SlackTowards(n, n.s, next, x, a) >= 0.0) {
+      good = x;
+      break;
+    }
+    bad = x;
+  }
+  if (good < 0.0) return -1.0;
+  for (int it = 0; it < 24 && bad - good > 1e-9 * bad; ++it) {
+    const double mid = 0.5 * (good + bad);
+    if (SlackTowards(n, n.s, next, mid, a) >= 0.0) {
+      good = mid;
+    } else {
+      bad = mid;
+    }
+  }
+  return good;
+}
+
+void ViableFeeds::Propagate(Node* n, const Node& next) const {
+  const double h = next.s - n->s;
+  const auto& b = next.boundary;
+  std::vector<Point> out;
+  out.reserve(b.size() + 8);
+  if (h <= 0.0) {
+    // Either side of a break: the same states, admissible on both sides.
+    for (const Point& p : b) {
+      const double c = Clip(*n, p.a, p.v);
+      if (c >= 0.0) out.push_back({p.a, c});
+    }
+    n->boundary = std::move(out);
+    return;
+  }
+  // The peak: the points at the boundary's largest feed (a plateau at the feed cap has many).
+  std::size_t peak = 0;
+  for (std::size_t i = 1; i < b.size(); ++i) {
+    if (b[i].v > b[peak].v) peak = i;
+  }
+  const double top = b[peak].v;
+  std::size_t peak_left = peak, peak_right = peak;
+  while (peak_left > 0 && b[peak_left - 1].v >= top - 1e-9 * (1.0 + top)) --peak_left;
+  while (peak_right + 1 < b.size() && b[peak_right + 1].v >= top - 1e-9 * (1.0 + top)) ++peak_right;
+  const double a_range = n->acceleration_cap;
+  // Flow a boundary point of `next` back to `n` along the extreme jerk that keeps it viable:
+  // braking as hard as allowed right of the peak, accelerating left of it. The jerk bound is the
+  // one of the state it comes from (a fixed point, found in a few rounds).
+  // `hold`: the jerk that keeps the acceleration (inside a plateau, where any successor on it
+  // will do).
+  const auto flow = [&](const Point& e, bool brake, bool hold = false) {
+    double lo, hi;
+    if (!Admissible(next, e.v, e.a, &lo, &hi)) return;
+    if (hold && (lo > 0.0 || hi < 0.0)) return;
+    double j = hold ? 0.0 : brake ? lo : hi;
+    double v = e.v, a = e.a;
+    for (int round = 0; round < 4; ++round) {
+      if (!Backward(e.v, e.a, j, h, &v, &a)) return;
+      if (std::abs(a) > 2.0 * a_range) return;
+      if (a < 0.0 && v < a * a / (2.0 * n->jerk_cap)) return;
+      double lo0, hi0;
+      if (!Admissible(*n, v, a, &lo0, &hi0)) {
+        const double c = Clip(*n, a, v);
+        if (c >= 0.0) out.push_back({a, c});
+        return;
+      }
+      if (hold) {
+        if (lo0 > 0.0 || hi0 < 0.0) return;
+        break;
+      }
+      const double j0 = brake ? lo0 : hi0;
+      if (std::abs(j0 - j) <= 1e-9 * (std::abs(j) + 1.0)) break;
+      j = j0;
+    }
+    out.push_back({a, v});
+  };
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    if (i >= peak_right) flow(b[i], true);
+    if (i <= peak_left) flow(b[i], false);
+    if (i >= peak_left && i <= peak_right) flow(b[i], false, true);
+  }
+  if (out.empty()) {
+    const double v = Bisect(*n, next, 0.0);
+    if (v >= 0.0) out.push_back({0.0, v});
+  }
+  std::sort(out.begin(), out.end(), [](const Point& x, const Point& y) { return x.a < y.a; });
+  // Merge points closer than the resolution allows (keep the higher: both are viable), and fill
+  // gaps wider than it by flowing back an interpolated point of `next`.
+  const double resolution = options_.boundary_resolution * a_range;
+  const double merge = 0.05 * resolution;
+  const double t = h / std::max(b[peak].v, 1.0);
+  const double peak_a = b[peak].a;
+  std::vector<Point> merged;
+  merged.reserve(out.size() + 8);
+  for (const Point& p : out) {
+    if (!merged.empty() && p.a - merged.back().a < merge) {
+      merged.back().v = std::max(merged.back().v, p.v);
+      continue;
+    }
+    if (!merged.empty() && p.a - merged.back().a > resolution) {
+      const Point l = merged.back();
+      const int extra = std::min(16, static_cast<int>(std::ceil((p.a - l.a) / resolution)) - 1);
+      for (int e = 1; e <= extra; ++e) {
+        const double f = static_cast<double>(e) / (extra + 1);
+        const Point spawned =
+            Spawn(*n, next, l.a + f * (p.a - l.a), l.v + f * (p.v - l.v), peak_a, t);
+        if (spawned.v >= 0.0 && spawned.a > merged.back().a + merge && spawned.a < p.a - merge) {
+          merged.push_back(spawned);
+        }
+      }
+    }
+    merged.push_back(p);
+  }
+  // Where the flows move inward (the jerk interval lies all on one side), look past the ends.
+  for (const int side : {-1, 1}) {
+    for (int k = 0; k < 4 && !merged.empty(); ++k) {
+      const Point& end = side > 0 ? merged.back() : merged.front();
+      const double a = end.a + side * resolution;
+      if (std::abs(a) > a_range) break;
+      const double v = Bisect(*n, next, a);
+      if (v < 0.0) break;
+      if (side > 0) {
+        merged.push_back({a, v});
+      } else {
+        merged.insert(merged.begin(), Point{a, v});
+      }
+    }
+  }
+  // Where a chord reads the boundary low (it bends between two points), add the point between.
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Point> refined;
+    refined.reserve(2 * merged.size());
+    for (std::size_t i = 0; i + 1 < merged.size(); ++i) {
+      refined.push_back(merged[i]);
+      const double mid = 0.5 * (merged[i].a + merged[i + 1].a);
+      if (merged[i + 1].a - merged[i].a < 2.0 * merge) continue;
+      const double chord = 0.5 * (merged[i].v + merged[i + 1].v);
+      const double curve = Curved(merged, i, mid);
+      if (curve - chord <= kChordTolerance * (1.0 + chord)) continue;
+      const Point spawned = Spawn(*n, next, mid, curve, peak_a, t);
+      if (spawned.v >= 0.0 && spawned.a > merged[i].a + merge &&
+          spawned.a < merged[i + 1].a - merge) {
+        refined.push_back(spawned);
+      }
+    }
+    if (!merged.empty()) refined.push_back(merged.back());
+    if (refined.size() == merged.size()) break;
+    merged = std::move(refined);
+  }
+  // Drop points the straight line between their neighbours carries (a plateau at the feed).
+  std::vector<Point> simple;
+  simple.reserve(merged.size());
+  for (std::size_t i = 0; i < merged.size(); ++i) {
+    if (i > 0 && i + 1 < merged.size() && !simple.empty()) {
+      const Point& l = simple.back();
+      const Point& r = merged[i + 1];
+      const double line = l.v + (merged[i].a - l.a) / (r.a - l.a) * (r.v - l.v);
+      if (std::abs(line - merged[i].v) <= 1e-9 * (1.0 + merged[i].v)) continue;
+    }
+    simple.push_back(merged[i]);
+  }
+  n->boundary = std::move(simple);
+}
+
+ViableFeeds::Point ViableFeeds::Spawn(const Node& n, const Node& next, double a, double v_guess,
+                                      double peak_a, double t) const {
+  // The boundary point of n near acceleration a: the point of `next` that the extreme jerk (the
+  // one of the state guessed at a) carries there, flowed back; a bisection where that fails.
+  double lo, hi;
+  if (Admissible(n, v_guess, a, &lo, &hi)) {
+    const double j = a > peak_a ? lo : hi;
+    const double a2 = a + j * t;
+    const double v2 = Boundary(next.boundary, a2);
+    double pv, pa;
+    if (v2 >= 0.0 && Backward(v2, a2, j, next.s - n.s, &pv, &pa) &&
+        !(pa < 0.0 && pv < pa * pa / (2.0 * n.jerk_cap))) {
+      const double c = Clip(n, pa, pv);
+      if (c >= 0.0) return {pa, c};
+    }
+  }
+  return {a, Bisect(n, next, a)};
+}
+
+ViableFeeds::Node ViableFeeds::Sample(double s, const PathState& hint, const AxisVector& q_hint,
+                                      int side) const {
+  ++const_cast<ViableFeeds*>(this)->grid_points_;
+  Node n;
+  n.s = s;
+  const double length = length_.value_or(INFINITY);
+  const auto pose_at = [&](double x, PathState* st, AxisVector* q, const AxisVector& near) {
+    const PathSample p = path_.At(*st, x);
+    if (p.status == PathStatus::kLeftDomain || p.status == PathStatus::kNoConvergence) {
+      throw Error("cannot follow the path at {}: the path source failed at arc length {} mm",
+                  path_.Describe(*st), x);
+    }
+    *st = p.state;
+    const InverseResult r = machine_.Inverse(p.pose, &near, q);
+    if (r.status != InverseStatus::kOk) {
+      throw Error("cannot follow the path at {}: {}", path_.Describe(p.state),
+                  DescribeInverseFailure(machine_, r));
+    }
+  };
+  PathState st = hint;
+  pose_at(s, &st, &n.q, q_hint);
+  n.state = st;
+  // Central differences of exact positions, one-sided at the path's ends and breaks.
+  const double d = 2e-3;
+  AxisVector f[5];
+  const bool left = side < 0 || (side == 0 && s + 2.0 * d > length);
+  const bool right = !left && (side > 0 || s - 2.0 * d < 0.0);
+  if (left || right) {
+    const double sign = left ? -1.0 : 1.0;
+    f[0] = n.q;
+    PathState w = st;
+    for (int k = 1; k < 5; ++k) pose_at(s + sign * k * d, &w, &f[k], n.q);
+    n.d1 =
+        sign * (-25.0 * f[0] + 48.0 * f[1] - 36.0 * f[2] + 16.0 * f[3] - 3.0 * f[4]) / (12.0 * d);
+    n.d2 = (35.0 * f[0] - 104.0 * f[1] + 114.0 * f[2] - 56.0 * f[3] + 11.0 * f[4]) / (12.0 * d * d);
+    n.d3 = sign * (-5.0 * f[0] + 18.0 * f[1] - 24.0 * f[2] + 14.0 * f[3] - 3.0 * f[4]) /
+           (2.0 * d * d * d);
+  } else {
+    PathState w = st;
+    pose_at(s - 2.0 * d, &w, &f[0], n.q);
+    pose_at(s - d, &w, &f[1], n.q);
+    f[2] = n.q;
+    pose_at(s + d, &w, &f[3], n.q);
+    pose_at(s + 2.0 * d, &w, &f[4], n.q);
+    n.d1 = (f[0] - 8.0 * f[1] + 8.0 * f[3] - f[4]) / (12.0 * d);
+    n.d2 = (-f[0] + 16.0 * f[1] - 30.0 * f[2] + 16.0 * f[3] - f[4]) / (12.0 * d * d);
+    n.d3 = (-f[0] + 2.0 * f[1] - 2.0 * f[3] + f[4]) / (2.0 * d * d * d);
+  }
+  n.feed_cap = limits_.feed;
+  for (const SlowPoint& p : path_.SlowPoints()) {
+    if (std::abs(p.s - s) <= 1e-9 * (1.0 + s)) n.feed_cap = std::min(n.feed_cap, p.feed_mm_s);
+  }
+  double cap = limits_.tangential_acceleration, jerk = limits_.tangential_jerk;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double g = std::abs(n.d1[i]);
+    if (g > 1e-9) cap = std::min(cap, limits_.a[i] / g), jerk = std::min(jerk, limits_.j[i] / g);
+  }
+  n.acceleration_cap = std::isfinite(cap) ? cap : 1e6;
+  n.jerk_cap = std::isfinite(jerk) ? jerk : 1e9;
+  return n;
+}
+
+double ViableFeeds::Spacing(const Node& n, double end) const {
+  // The feed to expect: the admissible feed at zero acceleration, and near the end of the grid
+  // (where the motion comes to rest) the feed of a stop there, (J d^2)^(1/3).
+  const double d = std::max(end - n.s, 0.0);
+  const double v =
+      std::max(std::min(Clip(n, 0.0, n.feed_cap), std::cbrt(n.jerk_cap * d * d)), 0.05);
+  double h = std::min(options_.max_spacing_mm, options_.node_time_s * v);
+  // Where the axes' directions change: q_ss and q_sss relative to q_s, each axis scaled by its
+  // velocity limit so that linear and rotary axes weigh alike.
+  double d1 = 0.0, d2 = 0.0, d3 = 0.0;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double w = 1.0 / limits_.v[i];
+    d1 += (n.d1[i] * w) * (n.d1[i] * w);
+    d2 += (n.d2[i] * w) * (n.d2[i] * w);
+    d3 += (n.d3[i] * w) * (n.d3[i] * w);
+  }
+  d1 = std::sqrt(d1), d2 = std::sqrt(d2), d3 = std::sqrt(d3);
+  if (d2 > 0.0) h = std::min(h, 0.05 * d1 / d2);
+  if (d3 > 0.0) h = std::min(h, 0.075 * std::sqrt(d1 / d3));
+  return std::max(h, options_.min_spacing_mm);
+}
+
+void ViableFeeds::Extend(double to) {
+  // Forward: sample from the last node to `to`, on either side of every break.
+  path_.Reach(to);
+  if (!length_) length_ = path_.Length();
+  if (length_) to = std::min(to, *length_);
+  const std::vector<double> breaks = path_.Breaks(nodes_.back().s, to);
+  auto next_break = breaks.begin();
+  while (nodes_.back().s < to) {
+    const Node& last = nodes_.back();
+    while (next_break != breaks.end() && *next_break <= last.s + 1e-9) ++next_break;
+    const double limit = next_break != breaks.end() ? std::min(*next_break, to) : to;
+    double step = Spacing(last, to);
+    for (;;) {
+      double s = last.s + step;
+      if (s > limit - 0.3 * step) s = limit;
+      const bool at_break = next_break != breaks.end() && s == *next_break;
+      Node n = Sample(s, last.state, last.q, at_break ? -1 : 0);
+      const double need = Spacing(n, to);
+      if (need < 0.7 * (s - last.s) && step > options_.min_spacing_mm) {
+        step = std::max(options_.min_spacing_mm, need);
+        continue;
+      }
+      if (at_break) {
+        // The piece after the break: same point, right-sided derivatives.
+        Node right = Sample(s, n.state, n.q, 1);
+        n.break_after = true;
+        nodes_.push_back(std::move(n));
+        nodes_.push_back(std::move(right));
+      } else {
+        nodes_.push_back(std::move(n));
+      }
+      break;
+    }
+  }
+  // Backward: rest at the end of the window, then every boundary from the next one. Near the
+  // end, every state from which the planner's own discrete stop law (motion_law.hpp) comes to
+  // rest there with the least capacity the axes leave before it belongs to the viable set too:
+  // the continuous boundary alone would brake a little earlier than that law lands.
+  nodes_.back().boundary = TerminalBoundary(nodes_.back());
+  for (std::size_t k = nodes_.size() - 1; k-- > 0;) Propagate(&nodes_[k], nodes_[k + 1]);
+}
+
+std::vector<ViableFeeds::Point> ViableFeeds::TerminalBoundary(const Node& n) const {
+  // Rest at the end of the grid, give or take the landing (LookAheadOptions::landing_mm): the
+  // states that stop within it, the pure release (a = -J t, v = J t^2 / 2 over J t^3 / 6) and the
+  // stop from zero acceleration (v = (J d^2)^(1/3)).
+  const double j = n.jerk_cap, d = options_.landing_mm;
+  const double t = std::cbrt(6.0 * d / j);
+  return {{-j * t, 0.5 * j * t * t}, {0.0, std::cbrt(j * d * d)}};
+}
+
+void ViableFeeds::Repair(double s, double reach) {
+  if (nodes_.size() < 2) return;
+  std::size_t last = 0;
+  bool any = false;
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    Node& n = nodes_[k];
+    if (std::abs(n.s - s) > reach) continue;
+    n.margin = std::max(kMinRepairMargin, n.margin * kRepairFactor);
+    n.jerk_cap = std::min(n.jerk_cap, n.jerk_cap * kRepairFactor);
+    n.acceleration_cap = std::min(n.acceleration_cap, n.acceleration_cap * kRepairFactor);
+    last = k;
+    any = true;
+  }
+  if (!any) return;
+  // Recompute back over the stretch a stop from here can reach (the lowered boundary reaches no
+  // further back).
+  const double from = s - 4.0 * reach;
+  for (std::size_t k = std::min(last + 1, nodes_.size() - 1); k-- > 0;) {
+    Propagate(&nodes_[k], nodes_[k + 1]);
+    if (nodes_[k].s < from) break;
+  }
+}
+
+double ViableFeeds::JerkCap(double s) const {
+  if (nodes_.empty()) return limits_.tangential_jerk;
+  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
+                             [](double x, const Node& n) { return x < n.s; });
+  return (it == nodes_.begin() ? *it : *(it - 1)).jerk_cap;
+}
+
+double ViableFeeds::MinJerkCap(double s0, double s1) const {
+  double cap = limits_.tangential_jerk;
+  for (const Node& n : nodes_) {
+    if (n.s >= s0 && n.s <= s1) cap = std::min(cap, n.jerk_cap);
+  }
+  return std::min(cap, JerkCap(s0));
+}
+
+double ViableFeeds::MinAccelerationCap(double s0, double s1) const {
+  double cap = limits_.tangential_acceleration;
+  for (const Node& n : nodes_) {
+    if (n.s >= s0 && n.s <= s1) cap = std::min(cap, n.acceleration_cap);
+  }
+  return cap;
+}
+
+bool ViableFeeds::Admissible(double s, double v, double a) const {
+  if (nodes_.empty()) return false;
+  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
+                             [](double x, const Node& n) { return x < n.s; });
+  double lo, hi;
+  return Admissible(it == nodes_.begin() ? *it : *(it - 1), v, a, &lo, &hi);
+}
+
+void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi) const {
+  if (nodes_.empty()) {
+    *lo = -limits_.tangential_jerk, *hi = limits_.tangential_jerk;
+    return;
+  }
+  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
+                             [](double x, const Node& n) { return x < n.s; });
+  Node n = it == nodes_.begin() ? *it : *(it - 1);
+  n.margin /= options_.limit_fraction;
+  if (!Admissible(n, std::max(v, 0.0), a, lo, hi)) {
+    *lo = -10.0 * n.jerk_cap;
+    *hi = 10.0 * n.jerk_cap;
+  }
+}
+
+void ViableFeeds::Advance(double s, const PathState& state, const AxisVector& q, double keep) {
+  if (nodes_.empty()) {
+    path_.Reach(s + window_);
+    length_ = path_.Length();
+    Node first = Sample(s, state, q, 1);
+    nodes_.push_back(std::move(first));
+    Extend(s + window_);
+    return;
+  }
+  // Drop the grid behind where the planner may still step back to.
+  while (nodes_.size() > 2 && nodes_[1].s <= keep) nodes_.pop_front();
+  const bool at_end = length_ && nodes_.back().s >= *length_;
+  if (!at_end && nodes_.back().s < s + 0.5 * window_) Extend(s + window_);
+}
+
+}  // namespace dtis::interp
