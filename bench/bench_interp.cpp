@@ -23,31 +23,54 @@ struct Count final : dtis::interp::SetpointSink {
   void Accept(const dtis::interp::Setpoint&) override { ++n; }
 };
 
-void Plan(benchmark::State& state, const char* job_file) {
-  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+using dtis::interp::PlannerKind;
+
+// What the planning benchmarks report: setpoints per second, the real-time factor (seconds of
+// motion planned per second of compute), exact pose evaluations per setpoint, and the back-offs
+// and look-ahead repairs of one plan.
+void ReportPlanning(benchmark::State& state, long setpoints, double motion,
+                    const dtis::interp::VpopSummary& last) {
+  state.counters["setpoints_per_s"] =
+      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
+  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+  state.counters["evals_per_setpoint"] =
+      static_cast<double>(last.evaluations) / static_cast<double>(std::max(last.setpoints, 1L));
+  state.counters["back_offs"] = static_cast<double>(last.back_offs);
+  state.counters["repairs"] = static_cast<double>(last.profile_repairs);
+}
+
+// A curve or line sample planned alone (the path built once), one thread.
+//   build/bench/dtis_bench --benchmark_filter=Plan/
+void Plan(benchmark::State& state, const char* job_file, PlannerKind planner) {
+  auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  job.vpop.planner = planner;
   const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
   const auto path = dtis::io::BuildPath(job);
   long setpoints = 0;
   double motion = 0.0;
+  dtis::interp::VpopSummary last;
   for (auto _ : state) {
     Count sink;
-    const auto summary = dtis::interp::PlanVpop(*path, *machine, job.vpop, sink);
+    last = dtis::interp::PlanVpop(*path, *machine, job.vpop, sink);
     setpoints += sink.n;
-    motion += summary.motion_time_s;
-    benchmark::DoNotOptimize(summary);
+    motion += last.motion_time_s;
   }
-  state.counters["setpoints_per_s"] =
-      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
-  // Seconds of motion planned per second of compute.
-  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+  ReportPlanning(state, setpoints, motion, last);
 }
 
-BENCHMARK_CAPTURE(Plan, line, "samples/jobs/line.toml")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(Plan, trident, "samples/jobs/trident.toml")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(Plan, circle, "samples/jobs/circle.toml")->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(Plan, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml")
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
+#define DTIS_PLAN(name, file)                                              \
+  BENCHMARK_CAPTURE(Plan, name##_lookahead, file, PlannerKind::kLookAhead) \
+      ->Unit(benchmark::kMillisecond);                                     \
+  BENCHMARK_CAPTURE(Plan, name##_vpop, file, PlannerKind::kVpop)           \
+      ->Unit(benchmark::kMillisecond)                                      \
+      ->Iterations(1)
+DTIS_PLAN(line, "samples/jobs/line.toml");
+DTIS_PLAN(trident, "samples/jobs/trident.toml");
+DTIS_PLAN(circle, "samples/jobs/circle.toml");
+DTIS_PLAN(circle_300, "samples/jobs/circle_300.toml");
+DTIS_PLAN(open_pocket_bottom, "samples/jobs/open_pocket_bottom.toml");
+DTIS_PLAN(open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml");
+#undef DTIS_PLAN
 
 }  // namespace
 
@@ -173,6 +196,7 @@ void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
   const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
   long setpoints = 0;
   double motion = 0.0;
+  dtis::interp::VpopSummary last;
   dtis::interp::ProgramOptions po;
   po.threads = 1;
   // One thread for the corners too (BuildGcodePlan builds them on all cores otherwise).
@@ -182,18 +206,32 @@ void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
     const auto result = dtis::interp::PlanProgram(plan.segments, *machine, po);
     setpoints += static_cast<long>(result.setpoints.size());
     motion += result.total.motion_time_s;
+    last = result.total;
   }
   state.counters["blocks"] = static_cast<double>(program.moves.size());
-  state.counters["setpoints_per_s"] =
-      benchmark::Counter(static_cast<double>(setpoints), benchmark::Counter::kIsRate);
-  state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
+  ReportPlanning(state, setpoints, motion, last);
 }
 
-void GcodePlanLock(benchmark::State& state) {
-  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
+// A G-code sample with either planner (its program read once).
+void GcodePlanSample(benchmark::State& state, const char* job_file, PlannerKind planner) {
+  auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  job.vpop.planner = planner;
   GcodePlanOn(state, dtis::io::ReadGcode(job.path.gcode_file), job);
 }
-BENCHMARK(GcodePlanLock)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(GcodePlanSample, lock_lookahead, "samples/jobs/lock.toml",
+                  PlannerKind::kLookAhead)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(GcodePlanSample, lock_vpop, "samples/jobs/lock.toml", PlannerKind::kVpop)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(GcodePlanSample, five_axis_g1_lookahead, "samples/jobs/five_axis_g1.toml",
+                  PlannerKind::kLookAhead)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(GcodePlanSample, five_axis_g1_vpop, "samples/jobs/five_axis_g1.toml",
+                  PlannerKind::kVpop)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 void GcodePlan100k(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");

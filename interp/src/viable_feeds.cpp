@@ -27,7 +27,13 @@ constexpr double kChordTolerance = 2e-4;
 // covers the distance h (v t + a t^2 / 2 + j t^3 / 6 = h, the first root), or NaN when it comes to
 // rest first. Newton from h / v.
 double TimeToCover(double v, double a, double j, double h) {
-  double t = v > 1e-9 ? h / v : std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+  // Start from the series of the root in h when the feed dominates, else from the jerk alone.
+  double t = std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+  if (v > 1e-9) {
+    const double t1 = h / v;
+    const double t2 = t1 - a * t1 * t1 / (2.0 * v);
+    t = t2 > 0.5 * t1 ? t2 : t1;
+  }
   for (int it = 0; it < 40; ++it) {
     const double f = t * (v + t * (a / 2.0 + t * j / 6.0)) - h;
     const double df = v + t * (a + t * j / 2.0);
@@ -257,25 +263,53 @@ double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
   const double top = Clip(n, a, n.feed_cap);
   if (top < 0.0) return -1.0;
   // A braking state must keep the feed its release takes away.
-  if (a < 0.0 && top < a * a / (2.0 * n.jerk_cap)) return -1.0;
-  if (SlackTowards(n, n.s, next, top, a) >= 0.0) return top;
-  double good = -1.0, bad = top;
-  for (int k = 1; k <= 16; ++k) {
-    const double x = top * std::pow(0.6, k);
-    if (SlackTowards(n, n.s, next, x, a) >= 0.0) {
-      good = x;
-      break;
+  const double floor = a < 0.0 ? a * a / (2.0 * n.jerk_cap) : 0.0;
+  if (top < floor) return -1.0;
+  const auto slack = [&](double v) { return SlackTowards(n, n.s, next, v, a); };
+  double bad = top, f_bad = slack(top);
+  if (f_bad >= 0.0) return top;
+  // A bracket: first where the slack, close to linear in v with slope -1, puts the boundary, then
+  // geometrically down.
+  double good = -1.0, f_good = 0.0;
+  const double guess = top + f_bad;
+  if (guess > 0.0 && guess < top) {
+    const double f = slack(guess);
+    if (f >= 0.0) {
+      good = guess, f_good = f;
+    } else {
+      bad = guess, f_bad = f;
     }
-    bad = x;
+  }
+  for (int k = 1; k <= 16 && good < 0.0 && bad > floor; ++k) {
+    const double x = std::max(bad * 0.6, floor);
+    const double f = slack(x);
+    if (f >= 0.0) {
+      good = x, f_good = f;
+    } else {
+      bad = x, f_bad = f;
+    }
   }
   if (good < 0.0) return -1.0;
-  for (int it = 0; it < 24 && bad - good > 1e-9 * bad; ++it) {
-    const double mid = 0.5 * (good + bad);
-    if (SlackTowards(n, n.s, next, mid, a) >= 0.0) {
-      good = mid;
+  // Regula falsi with the Illinois rule (the end kept twice has its slack halved), falling back
+  // to a bisection whenever a step fails to halve the bracket: the slack is only piecewise smooth.
+  int kept = 0;  // > 0: `good` kept that many times in a row, < 0: `bad`
+  bool bisect = false;
+  for (int it = 0; it < 48 && bad - good > 1e-9 * bad; ++it) {
+    const double width = bad - good;
+    double x = bisect || !(f_good - f_bad > 0.0) ? 0.5 * (good + bad)
+                                                 : good + width * f_good / (f_good - f_bad);
+    x = std::clamp(x, good + 1e-3 * width, bad - 1e-3 * width);
+    const double f = slack(x);
+    if (f >= 0.0) {
+      good = x, f_good = f;
+      kept = std::min(kept, 0) - 1;
+      if (kept <= -2) f_bad *= 0.5;
     } else {
-      bad = mid;
+      bad = x, f_bad = f;
+      kept = std::max(kept, 0) + 1;
+      if (kept >= 2) f_good *= 0.5;
     }
+    bisect = bad - good > 0.5 * width;
   }
   return good;
 }
@@ -528,6 +562,7 @@ double ViableFeeds::Spacing(const Node& n, double end) const {
 
 void ViableFeeds::Extend(double to) {
   // Forward: sample from the last node to `to`, on either side of every break.
+  const double old_end = nodes_.back().s;
   path_.Reach(to);
   if (!length_) length_ = path_.Length();
   if (length_) to = std::min(to, *length_);
@@ -560,12 +595,38 @@ void ViableFeeds::Extend(double to) {
       break;
     }
   }
-  // Backward: rest at the end of the window, then every boundary from the next one. Near the
-  // end, every state from which the planner's own discrete stop law (motion_law.hpp) comes to
-  // rest there with the least capacity the axes leave before it belongs to the viable set too:
-  // the continuous boundary alone would brake a little earlier than that law lands.
+  // Backward: rest at the end of the window, then every boundary from the next one, back to half
+  // a window before the old end (three stops at the feed: what rest at the old end held back lies
+  // nearer to it). Near the end, every state from which the planner's own discrete stop law
+  // (motion_law.hpp) comes to rest there with the least capacity the axes leave before it belongs
+  // to the viable set too: the continuous boundary alone would brake a little earlier than that
+  // law lands.
   nodes_.back().boundary = TerminalBoundary(nodes_.back());
-  for (std::size_t k = nodes_.size() - 1; k-- > 0;) Propagate(&nodes_[k], nodes_[k + 1]);
+  Recompute(nodes_.size() - 1, old_end, old_end - 0.5 * window_);
+}
+
+void ViableFeeds::Recompute(std::size_t from, double unchanged, double until) {
+  // Node k's boundary depends only on its own limits and node k + 1's boundary: once a node
+  // before `unchanged` comes out as it was, so do all before it. Before `until`, what changed
+  // ahead reaches no further (or only as the slightly smaller viable set planned there before:
+  // rest at an earlier end, a wider margin).
+  const auto same = [](const std::vector<Point>& x, const std::vector<Point>& y) {
+    if (x.size() != y.size()) return false;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (std::abs(x[i].a - y[i].a) > 1e-12 * (1.0 + std::abs(x[i].a)) ||
+          std::abs(x[i].v - y[i].v) > 1e-12 * (1.0 + x[i].v)) {
+        return false;
+      }
+    }
+    return true;
+  };
+  std::vector<Point> before;
+  for (std::size_t k = from; k-- > 0;) {
+    before.swap(nodes_[k].boundary);
+    Propagate(&nodes_[k], nodes_[k + 1]);
+    if (nodes_[k].s < until) break;
+    if (nodes_[k].s < unchanged && !before.empty() && same(before, nodes_[k].boundary)) break;
+  }
 }
 
 std::vector<ViableFeeds::Point> ViableFeeds::TerminalBoundary(const Node& n) const {
@@ -593,11 +654,7 @@ void ViableFeeds::Repair(double s, double reach) {
   if (!any) return;
   // Recompute back over the stretch a stop from here can reach (the lowered boundary reaches no
   // further back).
-  const double from = s - 4.0 * reach;
-  for (std::size_t k = std::min(last + 1, nodes_.size() - 1); k-- > 0;) {
-    Propagate(&nodes_[k], nodes_[k + 1]);
-    if (nodes_[k].s < from) break;
-  }
+  Recompute(std::min(last + 1, nodes_.size() - 1), s - reach, s - 4.0 * reach);
 }
 
 double ViableFeeds::JerkCap(double s) const {

@@ -144,6 +144,9 @@ class ViableFeeds {
   double Spacing(const Node& n, double end) const;
   // Samples the path from the last node to `to` and recomputes the boundaries backward.
   void Extend(double to);
+  // Recomputes the boundaries backward from node `from` - 1 to arc length `until`, or to the
+  // first node before `unchanged` (where the limits did not change) that comes out as it was.
+  void Recompute(std::size_t from, double unchanged, double until);
 
   const PathSource& path_;
   const Machine& machine_;
