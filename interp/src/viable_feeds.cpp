@@ -561,22 +561,33 @@ double ViableFeeds::Spacing(const Node& n, double end) const {
 }
 
 void ViableFeeds::Extend(double to) {
-  // Forward: sample from the last node to `to`, on either side of every break.
+  // Forward: sample from the last node to `to`, on either side of every break and at every slow
+  // point (where the node's feed cap holds the slow point's feed).
   const double old_end = nodes_.back().s;
   path_.Reach(to);
   if (!length_) length_ = path_.Length();
   if (length_) to = std::min(to, *length_);
-  const std::vector<double> breaks = path_.Breaks(nodes_.back().s, to);
-  auto next_break = breaks.begin();
+  struct Mark {
+    double s;
+    bool is_break;
+  };
+  std::vector<Mark> marks;
+  for (const double b : path_.Breaks(old_end, to)) marks.push_back({b, true});
+  for (const SlowPoint& p : path_.SlowPoints()) {
+    if (p.s > old_end && p.s <= to) marks.push_back({p.s, false});
+  }
+  std::stable_sort(marks.begin(), marks.end(),
+                   [](const Mark& x, const Mark& y) { return x.s < y.s; });
+  auto next_mark = marks.begin();
   while (nodes_.back().s < to) {
     const Node& last = nodes_.back();
-    while (next_break != breaks.end() && *next_break <= last.s + 1e-9) ++next_break;
-    const double limit = next_break != breaks.end() ? std::min(*next_break, to) : to;
+    while (next_mark != marks.end() && next_mark->s <= last.s + 1e-9) ++next_mark;
+    const double limit = next_mark != marks.end() ? std::min(next_mark->s, to) : to;
     double step = Spacing(last, to);
     for (;;) {
       double s = last.s + step;
       if (s > limit - 0.3 * step) s = limit;
-      const bool at_break = next_break != breaks.end() && s == *next_break;
+      const bool at_break = next_mark != marks.end() && s == next_mark->s && next_mark->is_break;
       Node n = Sample(s, last.state, last.q, at_break ? -1 : 0);
       const double need = Spacing(n, to);
       if (need < 0.7 * (s - last.s) && step > options_.min_spacing_mm) {

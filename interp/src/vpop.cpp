@@ -142,6 +142,9 @@ constexpr double kLawMargin = 1.0 - 1e-7;
 // widened by this fraction of that interval's width.
 constexpr double kJerkGive = 0.05;
 
+// The end law lands the last this much of the path without the look-ahead's cap, mm.
+constexpr double kLandingMm = 0.1;
+
 // Repairs of the look-ahead at one place (within a few periods' travel of the first) before the
 // planner backs off instead.
 constexpr int kMaxRepairsHere = 8;
@@ -968,13 +971,23 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       target = std::max(soft, t.lo);
       by = soft > t.lo ? soft_by : t.lo_by;
     }
-    if (profile_ && !AtRest(h)) {
-      // (From rest, the first step is a jerk's worth: it can always be braked again.)
+    const bool landing =
+        by.kind == Limiter::kEndLookAhead && length_ && *length_ - h.p0->s <= kLandingMm;
+    if (profile_ && !AtRest(h) && !landing) {
+      // (From rest, the first step is a jerk's worth: it can always be braked again. In the last
+      // tenth of a millimetre of the end law's stop, the continuous profile and the discrete
+      // law disagree by more than is left: the law lands.)
       const double cap = ProfileCap(h, t.lo, t.hi, target, &target);
       if (cap < target) {
         target = std::max(cap, t.lo);
         by = {Limiter::kProfileLookAhead, -1};
       }
+    }
+    if (length_ && h.p0->s >= *length_ - o_.end_tolerance_mm &&
+        std::abs(target - h.p0->s) <= 1e-12 * (1.0 + std::abs(h.p0->s))) {
+      // Arrived, give or take a rounding step: come to rest (else the end law creeps a last ulp
+      // per period towards the end, for ever).
+      target = h.p0->s;
     }
     if (AtRest(h) && h.p0->s == last_stuck_s_) {
       // Back at rest where the last step from rest could not be carried on: the look-ahead laws

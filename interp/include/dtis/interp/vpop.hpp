@@ -35,7 +35,8 @@ enum class PlannerKind : std::uint8_t {
   // The paper's: the greedy step learns of a feed valley by failing in it, and the dichotomy of
   // §2.3 backs off to the latest step from which a brake gets through.
   kVpop,
-  // The exact step capped by a look-ahead of the viable feeds (profile.hpp); the paper's back-off
+  // The exact step capped by a look-ahead of the viable feeds (viable_feeds.hpp); the paper's
+  // back-off
   // stays as the last resort.
   kLookAhead,
 };
