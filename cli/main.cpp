@@ -92,10 +92,29 @@ std::string RenderJobReport(const dtis::io::Job& job, dtis::io::ReportInput in,
   return dtis::io::RenderReport(in, plotly);
 }
 
+// --planner: "vpop" or "lookahead" overrides the job's [interpolator] planner ("" keeps it).
+void ApplyPlanner(const std::string& planner, dtis::io::Job* job) {
+  if (planner.empty()) return;
+  if (job->interpolator != dtis::io::InterpolatorKind::kVpop) {
+    throw dtis::Error(
+        "--planner {}: {} plans with a Taylor interpolator ([interpolator] kind), "
+        "which has no planner to choose",
+        planner, job->file);
+  }
+  job->vpop.planner =
+      planner == "vpop" ? dtis::interp::PlannerKind::kVpop : dtis::interp::PlannerKind::kLookAhead;
+}
+
+const char* const kPlannerHelp =
+    "vpop (the paper's back-off) or lookahead (the exact step capped by the viable feeds "
+    "ahead); overrides the job's [interpolator] planner";
+
 int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
-        const std::string& report, bool quiet, int threads, long horizon) {
+        const std::string& report, bool quiet, int threads, long horizon,
+        const std::string& planner) {
   dtis::io::Job job = dtis::io::LoadJob(job_path);
   if (horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(horizon);
+  ApplyPlanner(planner, &job);
   std::string setpoints = !output.empty()              ? output
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
@@ -123,7 +142,7 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
 }
 
 struct CompareArgs {
-  std::string job, csv, markdown, exports, report;
+  std::string job, csv, markdown, exports, report, planner = "both";
   bool quiet = false;
   int threads = 0;
 };
@@ -135,6 +154,17 @@ int Compare(const CompareArgs& a) {
   dtis::io::CompareOptions options;
   options.threads = a.threads;
   options.exports_dir = a.exports;
+  if (a.planner == "both") {
+    // The job's planner first: its exact variant is the one the report shows in full.
+    const auto other = job.vpop.planner == dtis::interp::PlannerKind::kVpop
+                           ? dtis::interp::PlannerKind::kLookAhead
+                           : dtis::interp::PlannerKind::kVpop;
+    options.planners = {job.vpop.planner, other};
+  } else {
+    dtis::io::Job override = job;
+    ApplyPlanner(a.planner, &override);
+    options.planners = {override.vpop.planner};
+  }
   const bool tty = !a.quiet && isatty(fileno(stderr));
   options.progress = [tty](const std::string& variant) {
     if (tty) std::fprintf(stderr, "\r\033[Kexporting and planning %s ...", variant.c_str());
@@ -148,7 +178,8 @@ int Compare(const CompareArgs& a) {
   if (!a.report.empty()) {
     // The comparison on top; below it, the exact-surface variant's full report.
     const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
-    const dtis::io::VariantResult& exact = result.variants.back();
+    const dtis::io::VariantResult& exact =
+        dtis::io::ExactVariantOf(result, options.planners.front());
     dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;
@@ -177,7 +208,7 @@ std::atomic<bool> g_interrupted{false};
 extern "C" void OnInterrupt(int) { g_interrupted = true; }
 
 struct StreamArgs {
-  std::string job, to = "-", record, report, pace = "auto", from;
+  std::string job, to = "-", record, report, pace = "auto", from, planner;
   long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
   bool index = false, quiet = false;
 };
@@ -258,7 +289,8 @@ class StreamOutput {
 };
 
 int Stream(const StreamArgs& a) {
-  const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  dtis::io::Job job = dtis::io::LoadJob(a.job);
+  ApplyPlanner(a.planner, &job);
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
   const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
   std::optional<dtis::AxisVector> from;
@@ -338,7 +370,7 @@ int Stream(const StreamArgs& a) {
 }
 
 struct ServeArgs {
-  std::string socket, machine, to = "-", record_dir, pace = "realtime", from;
+  std::string socket, machine, to = "-", record_dir, pace = "realtime", from, planner;
   long buffer = 200, low_water = 20;
   bool index = false;
 };
@@ -359,6 +391,10 @@ int Serve(const ServeArgs& a) {
   o.stream.realtime = a.pace == "realtime";
   const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
   if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
+  if (!a.planner.empty()) {
+    o.planner = a.planner == "vpop" ? dtis::interp::PlannerKind::kVpop
+                                    : dtis::interp::PlannerKind::kLookAhead;
+  }
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
   StreamOutput output(a.to, *machine, a.index, a.buffer);
   std::signal(SIGPIPE, SIG_IGN);
@@ -463,6 +499,9 @@ int main(int argc, char** argv) {
                   "commit horizon, periods (overrides the job's): plans what `dtis stream "
                   "--horizon` with the same value sends")
       ->check(CLI::Range(8L, 1L << 30));
+  std::string run_planner;
+  run->add_option("--planner", run_planner, kPlannerHelp)
+      ->check(CLI::IsMember({"vpop", "lookahead"}));
   int threads = 0;
   run->add_option("-j,--threads", threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
@@ -483,6 +522,12 @@ int main(int argc, char** argv) {
   compare->add_option("--report", ca.report,
                       "also write a self-contained HTML report: the table, every variant's feed "
                       "against time, and the exact-surface run in full");
+  compare
+      ->add_option("--planner", ca.planner,
+                   "both (every variant planned by each planner, the job's first), vpop or "
+                   "lookahead")
+      ->check(CLI::IsMember({"both", "vpop", "lookahead"}))
+      ->capture_default_str();
   compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
   compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")
       ->check(CLI::NonNegativeNumber);
@@ -583,6 +628,8 @@ int main(int argc, char** argv) {
       ->add_option("--slow-planner-us", sa.slow_planner_us,
                    "testing: the planner sleeps this long per setpoint (to make it fall behind)")
       ->check(CLI::NonNegativeNumber);
+  stream->add_option("--planner", sa.planner, kPlannerHelp)
+      ->check(CLI::IsMember({"vpop", "lookahead"}));
   stream->add_flag("-q,--quiet", sa.quiet, "print nothing on success");
 
   auto* serve = app.add_subcommand(
@@ -606,6 +653,10 @@ int main(int argc, char** argv) {
   serve->add_flag("--index", va.index, "add the period number + 1 as a last column");
   serve->add_option("--record-dir", va.record_dir, "write job-<id>.csv there: what was streamed");
   serve->add_option("--from", va.from, "where the machine is before the first job, X,Y,Z[,A,C]");
+  serve
+      ->add_option("--planner", va.planner,
+                   "plan every job with vpop or lookahead, whatever its [interpolator] planner")
+      ->check(CLI::IsMember({"vpop", "lookahead"}));
 
   auto* send = app.add_subcommand(
       "send",
@@ -623,7 +674,9 @@ int main(int argc, char** argv) {
   try {
     if (*report) return Report(ra);
     if (*figures) return Figures(figures_report, figures_dir, fo, figures_quiet);
-    if (*run) return Run(job, output, limiters, run_report, quiet, threads, run_horizon);
+    if (*run) {
+      return Run(job, output, limiters, run_report, quiet, threads, run_horizon, run_planner);
+    }
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);

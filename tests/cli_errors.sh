@@ -101,6 +101,11 @@ expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "
 printf 'G0 X0 Y0\nG1 X10 F600 A5\n' > "$work/bad.ngc"
 expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
 
+# --planner: one of the two, and only for the VPOp interpolator.
+expect planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
+printf '\n[interpolator]\nkind = "taylor2"\n' | cat "$work/base.toml" - > "$work/taylor.toml"
+expect planner-taylor "--planner lookahead: $work/taylor.toml plans with a Taylor interpolator" -- "$dtis" run "$work/taylor.toml" --planner lookahead -o "$work/out.csv"
+
 # dtis compare: only surface jobs; a bad [compare] key names the file, line and key; no table is
 # left behind.
 printf '\n[compare]\n' >> "$work/base.toml"

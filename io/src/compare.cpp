@@ -386,9 +386,11 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
                                                   static_cast<std::size_t>(options.threads));
   }
   const auto machine = kinematics::LoadMachineFile(job.machine_file);
-  const SurfaceSetup setup = SetUpSurface(job);
   const CompareSpec& spec = job.compare;
-  Context c{job, options, *machine, setup, {}, {}, {}, {}, {}};
+  // Each planner plans from a copy of the job and of the passes' options that names it.
+  Job planned = job;
+  SurfaceSetup setup = SetUpSurface(job);
+  Context c{planned, options, *machine, setup, {}, {}, {}, {}, {}};
   c.run.threads = options.threads;
   CompareResult r;
   r.job = job.name;
@@ -415,28 +417,55 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   const auto progress = [&options](const std::string& name) {
     if (options.progress) options.progress(name);
   };
+  std::vector<interp::PlannerKind> planners = options.planners;
+  if (planners.empty()) planners.push_back(job.vpop.planner);
+  const std::string stem = c.stem;
+  // Plans a variant with every planner in turn; the exports are written once.
+  const auto with_each_planner = [&](const std::string& name, const auto& variant) {
+    for (std::size_t i = 0; i < planners.size(); ++i) {
+      const interp::PlannerKind p = planners[i];
+      planned.vpop.planner = setup.pass_options.planner = setup.link_options.planner = p;
+      c.stem = i == 0 ? stem : "";
+      progress(planners.size() > 1 ? fmt::format("{} ({})", name, interp::PlannerName(p)) : name);
+      r.variants.push_back(variant());
+      r.variants.back().planner = p;
+    }
+  };
   for (double tol : spec.g1_tolerances_mm) {
-    progress("G1 " + Microns(tol));
-    r.variants.push_back(G1Variant(c, tol));
+    with_each_planner("G1 " + Microns(tol), [&] { return G1Variant(c, tol); });
   }
   for (double tol : spec.bspline_tolerances_mm) {
-    progress("B-spline " + Microns(tol));
-    r.variants.push_back(BSplineVariant(c, tol, &r.notes));
+    std::vector<std::string> notes;
+    with_each_planner("B-spline " + Microns(tol), [&] { return BSplineVariant(c, tol, &notes); });
+    for (const auto& note : notes) {
+      if (std::find(r.notes.begin(), r.notes.end(), note) == r.notes.end()) r.notes.push_back(note);
+    }
   }
-  progress("DTIS (exact surface)");
-  r.variants.push_back(ExactVariant(c));
+  with_each_planner("DTIS (exact surface)", [&] { return ExactVariant(c); });
   return r;
 }
 
+const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner) {
+  const VariantResult* found = nullptr;
+  for (const auto& v : result.variants) {
+    if (v.kind != VariantResult::Kind::kExact) continue;
+    if (found == nullptr || v.planner == planner) found = &v;
+    if (v.planner == planner) break;
+  }
+  if (found == nullptr) throw Error("{}: the comparison has no exact-surface variant", result.job);
+  return *found;
+}
+
 std::vector<std::string> CompareHeader() {
-  return {"variant",         "blocks / poles",    "time (s)",        "passes (s)",
-          "export dev (um)", "export axis (deg)", "motion dev (um)", "motion axis (deg)",
-          "worst ratio",     "limiting axes",     "compute (s)"};
+  return {"variant",           "planner",         "blocks / poles",    "time (s)",
+          "passes (s)",        "export dev (um)", "export axis (deg)", "motion dev (um)",
+          "motion axis (deg)", "worst ratio",     "limiting axes",     "compute (s)"};
 }
 
 std::vector<std::string> CompareCells(const VariantResult& v) {
   const bool exact = v.kind == VariantResult::Kind::kExact;
   return {v.name,
+          interp::PlannerName(v.planner),
           exact ? "-" : fmt::format("{}", v.blocks),
           fmt::format("{:.3f}", v.motion_time_s),
           fmt::format("{:.3f}", v.pass_time_s),
@@ -470,14 +499,14 @@ std::string FormatCompareText(const CompareResult& r) {
 
 std::string FormatCompareCsv(const CompareResult& r) {
   std::string out =
-      "variant,tolerance_mm,blocks,motion_time_s,pass_time_s,export_deviation_mm,"
+      "variant,planner,tolerance_mm,blocks,motion_time_s,pass_time_s,export_deviation_mm,"
       "export_axis_deviation_deg,motion_deviation_mm,motion_axis_deviation_deg,worst_ratio,"
       "verified,limiting,compute_s\n";
   for (const auto& v : r.variants) {
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name, v.tolerance_mm,
-                       v.blocks, v.motion_time_s, v.pass_time_s, v.export_deviation_mm,
-                       v.export_axis_deviation_deg, v.motion_deviation_mm,
-                       v.motion_axis_deviation_deg, v.verify.worst_ratio,
+    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name,
+                       interp::PlannerName(v.planner), v.tolerance_mm, v.blocks, v.motion_time_s,
+                       v.pass_time_s, v.export_deviation_mm, v.export_axis_deviation_deg,
+                       v.motion_deviation_mm, v.motion_axis_deviation_deg, v.verify.worst_ratio,
                        v.verify.Passed() ? "yes" : "no", v.limiting, v.compute_s);
   }
   return out;

@@ -417,7 +417,7 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
       // The variant the report shows in full has its feed already.
       ordered_json series =
           Series(v.table.t, &v.table == in.table ? feed : Tip(machine, v.table, dt).feed);
-      series["name"] = v.name;
+      series["name"] = fmt::format("{} ({})", v.name, interp::PlannerName(v.planner));
       feeds.push_back(std::move(series));
     }
     data["compare"] = {{"header", CompareHeader()},

@@ -66,6 +66,7 @@ class Daemon {
         if (job.interpolator != InterpolatorKind::kVpop) {
           throw Error("{}: only VPOp jobs can be streamed", job.file);
         }
+        if (o_.planner) job.vpop.planner = *o_.planner;
         const int id = ++last_id_;
         queue_.push_back({id, std::move(job)});
         reply = {{"ok", true}, {"id", id}, {"queued", queue_.size()}};

@@ -26,11 +26,14 @@ struct CompareOptions {
   std::string exports_dir;
   // Called when a variant starts: "G1 10 um", ... From the calling thread.
   std::function<void(const std::string&)> progress;
+  // Every variant is planned with each of these planners, in this order (empty: the job's).
+  std::vector<interp::PlannerKind> planners;
 };
 
 struct VariantResult {
   enum class Kind { kG1, kBSpline, kExact } kind = Kind::kExact;
-  std::string name;            // "G1 10 um", "B-spline 1 um", "DTIS (exact surface)"
+  std::string name;  // "G1 10 um", "B-spline 1 um", "DTIS (exact surface)"
+  interp::PlannerKind planner = interp::PlannerKind::kVpop;
   double tolerance_mm = 0.0;   // 0 for the exact surface
   long blocks = 0;             // G1 blocks on the passes, or B-spline control points; 0 for DTIS
   double motion_time_s = 0.0;  // the whole program, links included
@@ -56,12 +59,16 @@ struct CompareResult {
   int passes = 0;
   double path_length_mm = 0.0;
   double sample_step_mm = 0.0;
-  std::vector<VariantResult> variants;  // G1 ..., B-spline ..., DTIS
-  std::vector<std::string> notes;       // what was not written, and why
+  // G1 ..., B-spline ..., DTIS; each with every planner in turn.
+  std::vector<VariantResult> variants;
+  std::vector<std::string> notes;  // what was not written, and why
 };
 
 // Throws dtis::Error naming the job, pass and what failed.
 CompareResult RunCompare(const Job& job, const CompareOptions& options = {});
+
+// The exact-surface variant planned with `planner` (the last exact variant when none was).
+const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner);
 
 // The comparison table: its column names, and one variant's row.
 std::vector<std::string> CompareHeader();

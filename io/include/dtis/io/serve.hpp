@@ -27,6 +27,8 @@ struct ServeOptions {
   std::string record_dir;    // if set: job-<id>.csv per job, what was streamed
   // When set: where the machine is before the first job (mm, rad).
   std::optional<AxisVector> from;
+  // When set: every job is planned with this planner, whatever its [interpolator] planner says.
+  std::optional<interp::PlannerKind> planner;
 };
 
 // Runs until a "shutdown" request; writes every job's setpoints to `out`. Throws dtis::Error if the
