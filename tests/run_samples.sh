@@ -1,23 +1,49 @@
 #!/usr/bin/env bash
-# Every sample job runs, and its setpoints pass `dtis verify` (VPOp jobs) or are read back by it
-# (Taylor jobs, which know no axis limit and are only compared).
+# Every sample job runs with each planner docs/samples.md gives a figure for, its setpoints pass
+# `dtis verify` and its motion time is at most that figure (Taylor jobs, which know no axis limit,
+# are only read back).
 set -euo pipefail
 dtis=$1
 root=$2
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
+# The motion time docs/samples.md prints for a job and planner ("" when it has none, or marks it
+# as not run by this test with a *).
+documented() {
+  awk -F'|' -v job="samples/jobs/$1.toml" -v col="$2" '
+    { gsub(/[ `]/, "", $2) }
+    $2 == job { v = $(col == "vpop" ? 4 : 5); gsub(/ /, "", v); if (v !~ /\*/) print v }
+  ' "$root/docs/samples.md"
+}
+
 for job in "$root"/samples/jobs/*.toml; do
   name=$(basename "$job" .toml)
   machine=$(sed -n 's/^machine = "\(.*\)"/\1/p' "$job")
   machine=$(cd "$(dirname "$job")" && realpath "$machine")
-  "$dtis" run "$job" -o "$out/$name.csv"
   if grep -q 'kind = "taylor' "$job"; then
+    "$dtis" run "$job" -o "$out/$name.csv"
     "$dtis" verify "$out/$name.csv" "$machine" >/dev/null || true
     test -s "$out/$name.csv"
-  else
-    "$dtis" verify "$out/$name.csv" "$machine"
+    echo "sample $name: ok"
+    continue
   fi
-  echo "sample $name: ok"
+  grep -q "samples/jobs/$name.toml" "$root/docs/samples.md" || {
+    echo "sample $name: not in docs/samples.md" >&2
+    exit 1
+  }
+  for planner in vpop lookahead; do
+    limit=$(documented "$name" "$planner")
+    [ -n "$limit" ] || continue
+    "$dtis" run "$job" --planner "$planner" -o "$out/$name.csv" 2>"$out/summary"
+    "$dtis" verify "$out/$name.csv" "$machine"
+    motion=$(sed -n 's/^motion time *\([0-9.]*\) s$/\1/p' "$out/summary")
+    # Motion times are whole periods: the planned time may not exceed the printed one.
+    awk -v m="$motion" -v l="$limit" 'BEGIN { exit !(m != "" && m <= l + 1e-9) }' || {
+      echo "sample $name, $planner: motion time $motion s, docs/samples.md says $limit s" >&2
+      exit 1
+    }
+    echo "sample $name, $planner: ok, $motion s (docs: $limit s)"
+  done
 done
 
 # A surface job's output does not depend on the number of threads planning its passes.
@@ -26,11 +52,16 @@ done
 cmp "$out/one.csv" "$out/two.csv"
 echo "surface job: byte-identical with 1 and 2 threads"
 
-# The comparison of exports (issue 5) on the 5-axis sample: every variant verifies (exit 0), and the
-# tables and exports are written.
+# The comparison of exports on the 5-axis sample: every variant, planned by each planner,
+# verifies (exit 0), and the tables and exports are written.
 "$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" -q --csv "$out/cmp.csv" \
   --markdown "$out/cmp.md" --exports "$out/exports"
-test "$(wc -l < "$out/cmp.csv")" -eq 6
+test "$(wc -l < "$out/cmp.csv")" -eq 11
+test "$(grep -c ',vpop,' "$out/cmp.csv")" -eq 5
+test "$(grep -c ',lookahead,' "$out/cmp.csv")" -eq 5
+"$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" -q --planner lookahead \
+  --csv "$out/cmp1.csv"
+test "$(wc -l < "$out/cmp1.csv")" -eq 6
 test -s "$out/exports/surface_tilt10_xyzac_g1_1um.ngc"
 test -s "$out/exports/surface_tilt10_xyzac_bspline_1um.mpf"
 echo "compare: ok"

@@ -5,6 +5,7 @@
 // a valid continuation wherever it is taken.
 #include "dtis/io/stream.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -66,36 +67,43 @@ io::StreamResult StreamJob(const io::Job& job, const Machine& machine, Capture* 
 }
 
 // Streamed = planned: the 5-axis surface sample, a G-code program (contours, corners, rapids) and
-// a NURBS curve give exactly the rows `dtis run` plans with the same horizon.
+// a NURBS curve give exactly the rows `dtis run` plans with the same horizon, with either planner
+// (the look-ahead's grid moves with the planner and is dropped behind the committed steps).
 TEST(Stream, EqualsTheRunWithTheSameHorizon) {
-  for (const char* name : {"surface_tilt10_xyzac", "lock", "trident"}) {
-    SCOPED_TRACE(name);
-    const io::Job job = SampleJob(name);
-    const io::RunResult run = io::RunJob(job);
-    Capture out(run.machine->AxisCount());
-    const io::StreamResult r = StreamJob(job, *run.machine, &out);
-    EXPECT_EQ(r.end, io::StreamEnd::kComplete);
-    EXPECT_EQ(r.stop_rows, 0);
-    EXPECT_TRUE(out.closed);
-    ASSERT_EQ(out.rows.size(), run.table.Rows());
-    EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
-    EXPECT_TRUE(r.verify.Passed());
-    EXPECT_EQ(r.verify.worst_ratio, run.verify.worst_ratio);
-    EXPECT_EQ(r.verify.motion_time_s, run.verify.motion_time_s);
-  }
+  for (const auto planner : {interp::PlannerKind::kVpop, interp::PlannerKind::kLookAhead})
+    for (const char* name : {"surface_tilt10_xyzac", "lock", "trident"}) {
+      SCOPED_TRACE(fmt::format("{} planned by {}", name, interp::PlannerName(planner)));
+      io::Job job = SampleJob(name);
+      job.vpop.planner = planner;
+      const io::RunResult run = io::RunJob(job);
+      Capture out(run.machine->AxisCount());
+      const io::StreamResult r = StreamJob(job, *run.machine, &out);
+      EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+      EXPECT_EQ(r.stop_rows, 0);
+      EXPECT_TRUE(out.closed);
+      ASSERT_EQ(out.rows.size(), run.table.Rows());
+      EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+      EXPECT_TRUE(r.verify.Passed());
+      EXPECT_EQ(r.verify.worst_ratio, run.verify.worst_ratio);
+      EXPECT_EQ(r.verify.motion_time_s, run.verify.motion_time_s);
+    }
 }
 
 // A chain of more than window_blocks blocks is streamed through a window (smoothed as it is
 // planned, dropped behind): the rows are still those `dtis run` plans from the whole chain.
 TEST(Stream, WindowedChainsStreamAsTheRunPlansThem) {
-  io::Job job = SampleJob("lock");
-  job.path.gcode.window_blocks = 8;
-  const io::RunResult run = io::RunJob(job);  // holds every chain whole
-  Capture out(run.machine->AxisCount());
-  const io::StreamResult r = StreamJob(job, *run.machine, &out);
-  EXPECT_EQ(r.end, io::StreamEnd::kComplete);
-  ASSERT_EQ(out.rows.size(), run.table.Rows());
-  EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+  for (const auto planner : {interp::PlannerKind::kVpop, interp::PlannerKind::kLookAhead}) {
+    SCOPED_TRACE(interp::PlannerName(planner));
+    io::Job job = SampleJob("lock");
+    job.vpop.planner = planner;
+    job.path.gcode.window_blocks = 8;
+    const io::RunResult run = io::RunJob(job);  // holds every chain whole
+    Capture out(run.machine->AxisCount());
+    const io::StreamResult r = StreamJob(job, *run.machine, &out);
+    EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+    ASSERT_EQ(out.rows.size(), run.table.Rows());
+    EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+  }
 }
 
 // An abort at many points of a 5-axis pass: the rows written are the planned ones up to where the
