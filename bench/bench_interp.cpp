@@ -135,6 +135,40 @@ void SurfacePlan(benchmark::State& state, const char* job_file) {
   counts.Report(state);
 }
 
+// A surface job's passes and links planned with either planner, one thread, the part loaded.
+//   build/bench/dtis_bench --benchmark_filter=SurfacePlanner/
+void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind planner) {
+  auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  job.vpop.planner = planner;
+  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto setup = dtis::io::SetUpSurface(job);
+  std::vector<const dtis::PathSource*> passes;
+  for (const auto& pass : setup.passes.passes) passes.push_back(pass.get());
+  dtis::io::RunOptions options;
+  options.threads = 1;
+  long setpoints = 0;
+  double motion = 0.0;
+  dtis::interp::VpopSummary last;
+  for (auto _ : state) {
+    const auto pp = dtis::io::PlanPasses(passes, setup, *machine, options, job.file);
+    setpoints += static_cast<long>(pp.program.setpoints.size());
+    motion += pp.program.total.motion_time_s;
+    last = pp.program.total;
+  }
+  ReportPlanning(state, setpoints, motion, last);
+}
+#define DTIS_SURFACE_PLANNER(name, file, vpop_iterations)                            \
+  BENCHMARK_CAPTURE(SurfacePlanner, name##_lookahead, file, PlannerKind::kLookAhead) \
+      ->Unit(benchmark::kMillisecond)                                                \
+      ->Iterations(1);                                                               \
+  BENCHMARK_CAPTURE(SurfacePlanner, name##_vpop, file, PlannerKind::kVpop)           \
+      ->Unit(benchmark::kMillisecond)                                                \
+      ->Iterations(vpop_iterations)
+DTIS_SURFACE_PLANNER(tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml", 1);
+DTIS_SURFACE_PLANNER(tilt10_singular, "samples/jobs/surface_tilt10_singular.toml", 1);
+DTIS_SURFACE_PLANNER(plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml", 1);
+#undef DTIS_SURFACE_PLANNER
+
 BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
     ->Arg(1)
     ->Arg(2)
@@ -222,6 +256,14 @@ BENCHMARK_CAPTURE(GcodePlanSample, lock_lookahead, "samples/jobs/lock.toml",
                   PlannerKind::kLookAhead)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(GcodePlanSample, lock_vpop, "samples/jobs/lock.toml", PlannerKind::kVpop)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(GcodePlanSample, fine_wave_lookahead, "samples/jobs/fine_wave.toml",
+                  PlannerKind::kLookAhead)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(GcodePlanSample, fine_wave_vpop, "samples/jobs/fine_wave.toml",
+                  PlannerKind::kVpop)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 BENCHMARK_CAPTURE(GcodePlanSample, five_axis_g1_lookahead, "samples/jobs/five_axis_g1.toml",
