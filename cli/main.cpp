@@ -184,7 +184,7 @@ int Compare(const CompareArgs& a) {
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;
     in.compare = &result;
-    in.shown = exact.name;
+    in.shown = fmt::format("{} ({})", exact.name, dtis::interp::PlannerName(exact.planner));
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
   }
   if (csv) csv->Commit();

@@ -147,7 +147,8 @@ TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
   EXPECT_EQ(data["compare"]["rows"][0][0], "G1 10 um");
   EXPECT_EQ(data["compare"]["header"].size(), CompareHeader().size());
   ASSERT_EQ(data["compare"]["feeds"].size(), 2u);
-  EXPECT_EQ(data["compare"]["feeds"][1]["name"], "DTIS (exact surface)");
+  // Each feed series names its variant and the planner that planned it.
+  EXPECT_EQ(data["compare"]["feeds"][1]["name"], "DTIS (exact surface) (vpop)");
   // The feed on the line peaks at the programmed 5 m/min.
   double peak = 0.0;
   for (const auto& f : data["compare"]["feeds"][0]["y"]) peak = std::max(peak, f.get<double>());
