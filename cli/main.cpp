@@ -19,6 +19,7 @@
 #include <utility>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/version.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/io/atomic_file.hpp"
@@ -33,6 +34,16 @@
 #include "dtis/kinematics/machines.hpp"
 
 namespace {
+
+// Exit status, the same for every subcommand.
+constexpr int kExitBadInput = 1;          // a file, option value or request is wrong: one message
+constexpr int kExitUsage = 2;             // the command line itself: unknown option, missing FILE
+constexpr int kExitVerifyFailed = 3;      // the setpoints fail the verifier
+constexpr int kExitInternal = 4;          // a bug: please report it with the job
+constexpr int kExitStreamEndedEarly = 5;  // a stream or job ended before its end, at rest
+constexpr const char* kExitStatusHelp =
+    "Exit status: 0 ok; 1 bad input (file, option value or request); 2 usage (the command line); "
+    "3 the setpoints fail the verifier; 4 internal error; 5 a stream ended early, at rest.\n";
 
 // A progress line on a terminal only: pipes and files stay clean.
 class Progress {
@@ -138,7 +149,9 @@ int Run(const std::string& job_path, const std::string& output, const std::strin
                  limiter_file.empty() ? "" : ", ", limiter_file.c_str(), report.empty() ? "" : ", ",
                  report.c_str());
   }
-  return result.verify.Passed() || job.interpolator != dtis::io::InterpolatorKind::kVpop ? 0 : 3;
+  return result.verify.Passed() || job.interpolator != dtis::io::InterpolatorKind::kVpop
+             ? 0
+             : kExitVerifyFailed;
 }
 
 struct CompareArgs {
@@ -192,7 +205,7 @@ int Compare(const CompareArgs& a) {
   if (html) html->Commit();
   std::fputs(dtis::io::FormatCompareText(result).c_str(), stdout);
   for (const auto& v : result.variants) {
-    if (!v.verify.Passed()) return 3;
+    if (!v.verify.Passed()) return kExitVerifyFailed;
   }
   return 0;
 }
@@ -365,8 +378,8 @@ int Stream(const StreamArgs& a) {
     if (!a.report.empty() && r.rows >= 2)
       std::fprintf(stderr, "report           %s\n", a.report.c_str());
   }
-  if (r.rows >= 2 && !r.verify.Passed()) return 3;
-  return r.end == dtis::io::StreamEnd::kComplete ? 0 : 5;
+  if (r.rows >= 2 && !r.verify.Passed()) return kExitVerifyFailed;
+  return r.end == dtis::io::StreamEnd::kComplete ? 0 : kExitStreamEndedEarly;
 }
 
 struct ServeArgs {
@@ -409,7 +422,7 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
   const auto table = dtis::io::ReadSetpoints(setpoints);
   const auto report = dtis::interp::Verify(table, *machine);
   std::fputs(dtis::interp::FormatReport(report).c_str(), stdout);
-  return report.Passed() ? 0 : 1;
+  return report.Passed() ? 0 : kExitVerifyFailed;
 }
 
 struct ReportArgs {
@@ -476,7 +489,8 @@ int main(int argc, char** argv) {
       "dtis: axis setpoints at a fixed period, every axis within its velocity, acceleration and "
       "jerk limits (VPOp, Beudaert et al. 2012)."};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "dtis 0.1.0");
+  app.set_version_flag("--version", fmt::format("dtis {}", dtis::kVersion));
+  app.footer(kExitStatusHelp);
 
   auto* run = app.add_subcommand(
       "run",
@@ -543,7 +557,7 @@ int main(int argc, char** argv) {
       "verify",
       "Check any setpoint file against a machine: per axis the largest |v|, |a|, |j| (backward "
       "differences) as a ratio to its limit, the motion time, and rest at both ends. Exit 0 when "
-      "every ratio is <= 1 and the sequence starts and ends at rest, 1 otherwise.");
+      "every ratio is <= 1 and the sequence starts and ends at rest, 3 otherwise.");
   std::string setpoints, machine;
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
   verify->add_option("MACHINE", machine, "machine file (see samples/machines/)")->required();
@@ -669,7 +683,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version print and succeed; every other parse error is a usage error.
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : kExitUsage;
   }
   try {
     if (*report) return Report(ra);
@@ -686,14 +702,14 @@ int main(int argc, char** argv) {
       const std::string reply =
           dtis::io::SendRequest(send_socket.empty() ? DefaultSocket() : send_socket, request);
       std::puts(reply.c_str());
-      return reply.find("\"ok\":true") != std::string::npos ? 0 : 2;
+      return reply.find("\"ok\":true") != std::string::npos ? 0 : kExitBadInput;
     }
   } catch (const dtis::Error& e) {
     std::fprintf(stderr, "dtis: error: %s\n", e.what());
-    return 1;
+    return kExitBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dtis: internal error: %s (please report it with the job)\n", e.what());
-    return 4;
+    return kExitInternal;
   }
   return 0;
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Bad input on the command line: one clear message naming the file, line or key, a non-zero exit,
-# and no output file left behind.
+# Bad input on the command line: one clear message naming the file, line or key, the documented
+# exit status (1 bad input, 2 usage, 3 verification failed), and no output file left behind.
 set -uo pipefail
 dtis=$1
 root=$2
@@ -8,14 +8,16 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 failures=0
 checks=0
-expect() {  # expect NAME FRAGMENT -- command...
-  local name=$1 fragment=$2
+expect_status() {  # expect_status STATUS NAME FRAGMENT -- command...
+  local want=$1 name=$2 fragment=$3
   checks=$((checks + 1))
-  shift 3
+  shift 4
   local err
   err=$("$@" 2>&1 >/dev/null)
   local rc=$?
-  if [ $rc -eq 0 ]; then echo "FAIL $name: exit 0"; failures=$((failures + 1)); return; fi
+  if [ $rc -ne "$want" ]; then
+    echo "FAIL $name: exit $rc, expected $want ($err)"; failures=$((failures + 1)); return
+  fi
   if [[ "$err" != *"$fragment"* ]]; then
     echo "FAIL $name: message '$err' lacks '$fragment'"; failures=$((failures + 1)); return
   fi
@@ -24,6 +26,8 @@ expect() {  # expect NAME FRAGMENT -- command...
   fi
   echo "ok $name"
 }
+expect() { expect_status 1 "$@"; }  # bad input
+expect_usage() { expect_status 2 "$@"; }
 cp "$root"/samples/machines/*.toml "$work/"
 cat > "$work/base.toml" <<JOB
 machine = "mikron_ucp710_xyz.toml"
@@ -57,7 +61,7 @@ sed 's/knots.toml/w.toml/' "$work/curvejob.toml" > "$work/wjob.toml"
 expect bad-weight "w.toml:4: curve: weight 2 is -1" -- "$dtis" run "$work/wjob.toml" -o "$work/out.csv"
 printf 't,X,Y,Z\n0,0,0,0\n0.001,abc,0,0\n' > "$work/bad.csv"
 expect bad-csv "bad.csv:3: column 2 ('X') is not a finite number" -- "$dtis" verify "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
-expect no-args "JOB is required" -- "$dtis" run
+expect_usage no-args "JOB is required" -- "$dtis" run
 # Surface jobs.
 parts="$root/samples/parts"
 expect step-nc "MACHINING_SCHEMA" -- "$dtis" faces "$parts/nist_iso14649_ex1E_freeform_operation.stp"
@@ -102,9 +106,18 @@ printf 'G0 X0 Y0\nG1 X10 F600 A5\n' > "$work/bad.ngc"
 expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
 
 # --planner: one of the two, and only for the VPOp interpolator.
-expect planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
+expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
 printf '\n[interpolator]\nkind = "taylor2"\n' | cat "$work/base.toml" - > "$work/taylor.toml"
 expect planner-taylor "--planner lookahead: $work/taylor.toml plans with a Taylor interpolator" -- "$dtis" run "$work/taylor.toml" --planner lookahead -o "$work/out.csv"
+# A file of another kind where a job is expected: say what to do with it.
+cp "$root/samples/gcode/lock.ngc" "$work/part.ngc"
+expect job-is-gcode "part.ngc: a job file (TOML) is expected, and this looks like a G-code program" -- "$dtis" run "$work/part.ngc" -o "$work/out.csv"
+expect job-is-step "a job file (TOML) is expected, and this looks like a STEP part; list its faces with 'dtis faces" -- "$dtis" stream "$parts/occt_trj8_c2-db-214_single_bspline_face.stp" --to /dev/null --record "$work/out.csv"
+expect_usage unknown-option "argument was not expected: --bogus" -- "$dtis" verify --bogus "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
+# verify: 3 when the setpoints fail the check, 1 when a file cannot be read.
+printf 't,X,Y,Z\n0,0,0,0\n0.001,0,0,0\n0.002,5,0,0\n0.003,5,0,0\n' > "$work/jump.csv"
+expect_status 3 verify-fails "" -- "$dtis" verify "$work/jump.csv" "$work/mikron_ucp710_xyz.toml"
+expect verify-no-machine "no-machine.toml: cannot open (no such file)" -- "$dtis" verify "$work/jump.csv" "$work/no-machine.toml"
 
 # dtis compare: only surface jobs; a bad [compare] key names the file, line and key; no table is
 # left behind.

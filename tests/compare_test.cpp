@@ -256,7 +256,7 @@ void CheckCompare(const io::Job& job, const std::string& dir) {
 
 TEST(Compare, FiveAxisSample) {
   const io::Job job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
-  const std::string dir = testing::TempDir() + "dtis_compare_5x";
+  const std::string dir = test::Scratch("compare_5x");
   CheckCompare(job, dir);
   // The 5-axis exports carry the tool axis: the curve files are bottom/top pairs, the Siemens
   // program uses TRAORI and ORICURVE.
@@ -276,7 +276,7 @@ TEST(Compare, ThreeAxisSampleFirstPasses) {
   text.insert(text.find("[link]"), "max_passes = 2\n\n");
   const io::Job job = io::ParseJob(text, path);
   ASSERT_EQ(job.surface->strategy.max_passes, 2);
-  CheckCompare(job, testing::TempDir() + "dtis_compare_3x");
+  CheckCompare(job, test::Scratch("compare_3x"));
 }
 
 // A link rises to the face's top plus the job's clearance (the placed face's optimal bounding box,
@@ -308,11 +308,10 @@ TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
 TEST(Exports, TwoOutputsOpenAtOnceStayApart) {
   const io::Job job = io::LoadJob(test::Source("samples/jobs/line.toml"));
   const io::RunResult r = io::RunJob(job);
-  const std::string dir = testing::TempDir();
-  io::WriteRunOutputs(job, r, dir + "dtis_two_sp.csv", dir + "dtis_two_lim.csv");
-  const auto table = io::ReadSetpoints(dir + "dtis_two_sp.csv");
+  io::WriteRunOutputs(job, r, test::Scratch("two_sp.csv"), test::Scratch("two_lim.csv"));
+  const auto table = io::ReadSetpoints(test::Scratch("two_sp.csv"));
   EXPECT_EQ(table.t.size(), r.table.t.size());
-  const std::string limiters = ReadFile(dir + "dtis_two_lim.csv");
+  const std::string limiters = ReadFile(test::Scratch("two_lim.csv"));
   EXPECT_EQ(limiters.rfind("t,s,feed,limiter,axis\n", 0), 0u);
   EXPECT_EQ(static_cast<std::size_t>(std::count(limiters.begin(), limiters.end(), '\n')),
             r.limiters.size() + 1);

@@ -84,7 +84,7 @@ TEST(SetpointFile, RoundTripsExactly) {
     for (int i = 0; i < 5; ++i)
       t.columns[static_cast<std::size_t>(i)].push_back(std::sin(k * 0.1 + i) * 123.456789);
   }
-  const std::string path = ::testing::TempDir() + "/roundtrip.csv";
+  const std::string path = test::Scratch("roundtrip.csv");
   WriteSetpoints(path, t);
   const auto back = ReadSetpoints(path);
   EXPECT_EQ(back.axes, t.axes);

@@ -38,8 +38,8 @@ TEST(Limiters, NamesReadBack) {
 TEST(Limiters, ReportReadsBackWhatARunWrote) {
   const Job job = LoadJob(test::Source("samples/jobs/trident.toml"));
   const RunResult r = RunJob(job);
-  const std::string setpoints = ::testing::TempDir() + "/limiters_run.csv";
-  const std::string limiters = ::testing::TempDir() + "/limiters_run_lim.csv";
+  const std::string setpoints = test::Scratch("limiters_run.csv");
+  const std::string limiters = test::Scratch("limiters_run_lim.csv");
   WriteRunOutputs(job, r, setpoints, limiters);
   const auto back = ReadLimiters(limiters, AxisNames(*r.machine));
   ASSERT_EQ(back.size(), r.limiters.size());

@@ -35,7 +35,7 @@ start_daemon() {  # socket, extra arguments
 expect_error() {  # request, text the error must contain
   local reply rc=0
   reply=$(send "$1") || rc=$?
-  test "$rc" = 2 || { echo "expected exit 2 for $1, got $rc: $reply" >&2; return 1; }
+  test "$rc" = 1 || { echo "expected exit 1 (bad input) for $1, got $rc: $reply" >&2; return 1; }
   echo "$reply" | grep -q '"ok":false' || { echo "not an error: $reply" >&2; return 1; }
   echo "$reply" | grep -qF "$2" || { echo "error without '$2': $reply" >&2; return 1; }
 }

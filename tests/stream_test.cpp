@@ -244,8 +244,7 @@ TEST(Stream, AFailingPathEndsWithTheStop) {
 TEST(Stream, RecordReadsBackToTheSameReport) {
   const io::Job job = SampleJob("trident", 64);
   const auto machine = kinematics::LoadMachineFile(job.machine_file);
-  const std::string file =
-      (std::filesystem::temp_directory_path() / "dtis_stream_record_test.csv").string();
+  const std::string file = test::Scratch("stream_record.csv");
   io::StreamResult r;
   {
     io::SetpointWriter record(file, io::AxisNames(*machine));

@@ -20,6 +20,9 @@ namespace dtis::test {
 extern long g_count;          // cases per randomized property test
 extern unsigned long g_seed;  // base seed
 
+// A path for `name` in this run's own scratch folder (removed when the run ends).
+std::string Scratch(const std::string& name);
+
 inline std::string Source(const std::string& relative) {
   return std::string(DTIS_SOURCE_DIR) + "/" + relative;
 }

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -314,6 +315,34 @@ Job ReadJob(TomlTable& root) {
   return job;
 }
 
+// A G-code program, a STEP part or a setpoint file handed where a job is expected gets told what
+// to do with it instead of a TOML syntax error on its first line.
+void RejectWhatIsNotAJob(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string name = std::filesystem::path(path).filename().string();
+  if (ext == ".ngc" || ext == ".nc" || ext == ".gcode" || ext == ".tap" || ext == ".cnc") {
+    throw Error(
+        "{}: a job file (TOML) is expected, and this looks like a G-code program; plan it with a "
+        "job that names it and a machine: machine = \"MACHINE.toml\", [path] kind = \"gcode\", "
+        "file = \"{}\" (see samples/jobs/lock.toml and docs/jobs.md)",
+        path, name);
+  }
+  if (ext == ".stp" || ext == ".step" || ext == ".p21") {
+    throw Error(
+        "{}: a job file (TOML) is expected, and this looks like a STEP part; list its faces with "
+        "'dtis faces {}' and name one in a surface job's [surface] (see "
+        "samples/jobs/surface_tilt10_xyzac.toml and docs/jobs.md)",
+        path, path);
+  }
+  if (ext == ".csv") {
+    throw Error(
+        "{}: a job file (TOML) is expected, and this looks like a setpoint file; check it with "
+        "'dtis verify {} MACHINE' or draw it with 'dtis report {} MACHINE'",
+        path, path, path);
+  }
+}
+
 }  // namespace
 
 Job ParseJob(std::string_view text, const std::string& source_name) {
@@ -322,6 +351,7 @@ Job ParseJob(std::string_view text, const std::string& source_name) {
 }
 
 Job LoadJob(const std::string& path) {
+  RejectWhatIsNotAJob(path);
   TomlTable root = TomlTable::ParseFile(path);
   return ReadJob(root);
 }
