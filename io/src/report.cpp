@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <optional>
@@ -13,6 +14,9 @@
 #include "dtis/core/file_text.hpp"
 #include "dtis/io/setpoint_file.hpp"
 
+#ifndef DTIS_DATA_FROM_BIN
+#define DTIS_DATA_FROM_BIN "../share/dtis"
+#endif
 #ifndef DTIS_PLOTLY_JS
 #define DTIS_PLOTLY_JS ""
 #endif
@@ -454,8 +458,17 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
   return page;
 }
 
+// Where plotly.js is: $DTIS_PLOTLY_JS; else next to an installed dtis (PREFIX/bin/dtis reads
+// PREFIX/share/dtis/plotly.min.js); else the copy scripts/bootstrap put in the source tree.
 std::string PlotlyPath() {
   if (const char* env = std::getenv("DTIS_PLOTLY_JS"); env && *env) return env;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed =
+        exe.parent_path() / DTIS_DATA_FROM_BIN / "plotly.min.js";
+    if (std::filesystem::is_regular_file(installed, ec)) return installed.lexically_normal();
+  }
   return DTIS_PLOTLY_JS;
 }
 
