@@ -45,13 +45,16 @@ constexpr const char* kExitStatusHelp =
     "Exit status: 0 ok; 1 bad input (file, option value or request); 2 usage (the command line); "
     "3 the setpoints fail the verifier; 4 internal error; 5 a stream ended early, at rest.\n";
 
-// A progress line on a terminal only: pipes and files stay clean.
+// A progress line on a terminal only: pipes and files stay clean. Segments finish on several
+// threads, whose counts may arrive out of order: the line only moves forward.
 class Progress {
  public:
   explicit Progress(bool enabled) : enabled_(enabled && isatty(fileno(stderr))) {}
   void Update(int done, int total) {
     if (!enabled_) return;
     std::lock_guard lock(mutex_);
+    if (done < shown_) return;
+    shown_ = done;
     constexpr int kWidth = 30;
     const int filled = total ? kWidth * done / total : kWidth;
     std::fprintf(stderr, "\rplanning [%s%s] %d/%d segments", std::string(filled, '#').c_str(),
@@ -63,6 +66,7 @@ class Progress {
  private:
   bool enabled_;
   std::mutex mutex_;
+  int shown_ = 0;
 };
 
 // A surface job's face for its report. A face OpenCASCADE cannot mesh costs the report its
