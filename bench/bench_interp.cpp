@@ -26,8 +26,8 @@ struct Count final : dtis::interp::SetpointSink {
 using dtis::interp::PlannerKind;
 
 // What the planning benchmarks report: setpoints per second, the real-time factor (seconds of
-// motion planned per second of compute), exact pose evaluations per setpoint, and the back-offs
-// and look-ahead repairs of one plan.
+// motion planned per second of compute), exact pose evaluations per setpoint, and the motion time,
+// back-offs and look-ahead repairs of one plan.
 void ReportPlanning(benchmark::State& state, long setpoints, double motion,
                     const dtis::interp::VpopSummary& last) {
   state.counters["setpoints_per_s"] =
@@ -35,6 +35,7 @@ void ReportPlanning(benchmark::State& state, long setpoints, double motion,
   state.counters["real_time_factor"] = benchmark::Counter(motion, benchmark::Counter::kIsRate);
   state.counters["evals_per_setpoint"] =
       static_cast<double>(last.evaluations) / static_cast<double>(std::max(last.setpoints, 1L));
+  state.counters["motion_s"] = last.motion_time_s;
   state.counters["back_offs"] = static_cast<double>(last.back_offs);
   state.counters["repairs"] = static_cast<double>(last.profile_repairs);
 }

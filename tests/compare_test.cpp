@@ -198,7 +198,7 @@ TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
   }
 }
 
-// The comparison on a sample: every claim of issue 5's "what must hold".
+// The comparison on a sample: every claim the comparison makes.
 void CheckCompare(const io::Job& job, const std::string& dir) {
   io::CompareOptions options;
   options.exports_dir = dir;

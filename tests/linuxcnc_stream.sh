@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# dtis stream through real LinuxCNC HAL (issue 6). A headless HAL session runs a 1 ms servo thread
+# dtis stream through real LinuxCNC HAL. A headless HAL session runs a 1 ms servo thread
 # with streamer.0 -> sampler.0; `dtis stream` feeds halstreamer in real time and halsampler records
 # every period. Checks, on a 5-axis sample job:
 #   - every period from the first streamed row on holds the next row, none skipped or repeated

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# HTML reports in headless Chromium (issue 7). Every sample job's `dtis run --report`, a `dtis
+# HTML reports in headless Chromium. Every sample job's `dtis run --report`, a `dtis
 # compare --report`, a `dtis stream --report` and a `dtis report --job --limiters` must render with
 # no script or console error, hold the expected plots and traces, and show the numbers `dtis verify`
 # prints for the same setpoints; `dtis figures` must write every plot as a PNG and an SVG. Keeps a

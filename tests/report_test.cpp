@@ -1,4 +1,4 @@
-// Reports (issue 7): the limiter report read back, the face mesh drawn under a surface path, the
+// Reports: the limiter report read back, the face mesh drawn under a surface path, the
 // report's data, and the static figures' decoding.
 #include "dtis/io/report.hpp"
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# `dtis serve` (issue 6): bad requests are answered with an error and change nothing; jobs run one
+# `dtis serve`: bad requests are answered with an error and change nothing; jobs run one
 # after the other, the next linked from where the previous left the machine, so that everything
 # the CNC received verifies as ONE sequence; an abort ends the job at rest and holds the queue
 # until "resume"; a pause holds at rest at the end of the current segment.

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# The memory of `dtis stream` does not grow with the job's length (issue 6): a G1 raster of 6 rows
+# The memory of `dtis stream` does not grow with the job's length: a G1 raster of 6 rows
 # (about 1 minute at F600) and one of 60 rows (about 10 minutes, 600 000 setpoints) are streamed
 # as fast as the output takes them; their peak resident memory (max RSS) must differ by less than
 # 8 MB, where keeping the setpoints would take 50 MB more (`dtis run` holds 314 MB for the long one).
-# Nor with the program's length (issue 4): 5 000 and 50 000 blocks of 0.2 mm whose feed alternates
+# Nor with the program's length: 5 000 and 50 000 blocks of 0.2 mm whose feed alternates
 # (one chain, rest to rest, per block) on a machine fast enough to run a block in a few periods:
 # holding the program took 50 MB more for the long one (1 KB per block). Nor with one chain's
 # length: 5 000 and 50 000 blocks at one feed, rows joined by a step in Y, form a single chain

@@ -1,4 +1,4 @@
-// Streaming to a running machine (issue 6): what is streamed is what `dtis run` plans with the same
+// Streaming to a running machine: what is streamed is what `dtis run` plans with the same
 // commit horizon, row for row; an abort, a planner that falls behind and a path that fails mid-way
 // all end with the offered stop, at rest and within every limit (checked by the verifier on the
 // rows written, and again from the recorded file); the stop law offered by the planner is itself

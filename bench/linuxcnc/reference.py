@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""LinuxCNC's own trajectory planner as a reference for dtis (issue 6, item 5).
+"""LinuxCNC's own trajectory planner as a reference for dtis.
 
 Runs G-code programs through LinuxCNC 2.9's planner headless (a [DISPLAY] program, driver.py,
 drives the `linuxcnc` Python module; a sampler records the joint positions every 1 ms servo

@@ -1,5 +1,6 @@
 // Machine: pose -> axis positions, with the solution branch kept continuous with the previous
-// positions, and the per-axis limits (DESIGN.md, "The two contracts"). Units inside: mm, s, rad.
+// positions, and the per-axis limits (docs/design.md, "The two contracts"). Units inside: mm, s,
+// rad.
 #pragma once
 
 #include <Eigen/Core>

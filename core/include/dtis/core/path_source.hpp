@@ -1,4 +1,4 @@
-// PathSource: what the interpolator sees of any path (DESIGN.md, "The two contracts").
+// PathSource: what the interpolator sees of any path (docs/design.md, "The two contracts").
 //
 // Given a saved state near arc length s and a trial arc length s', a PathSource returns the pose at
 // s' and the state there. For a curve the state is its parameter; for a surface strategy it is the

@@ -58,7 +58,7 @@ struct VpopOptions {
   // Exact evaluations allowed in the search for one step before it counts as empty.
   int max_search_evaluations = 24;
   // Steps kept open to back-off before they are handed to the sink. Each handed-over step is one
-  // from which a stop to rest within every limit is proven (DESIGN.md: the commit horizon).
+  // from which a stop to rest within every limit is proven (docs/design.md: the commit horizon).
   std::size_t commit_horizon = std::numeric_limits<std::size_t>::max();
   // Largest absolute axis position expected, used to size the rounding guard (mm or rad; 0: from
   // the axis travel, 10 turns for continuous rotary axes).
@@ -122,7 +122,7 @@ class SetpointSink {
   virtual void Accept(const Setpoint& setpoint) = 0;
   // True when the sink wants no more setpoints: planning stops after the next hand-over.
   virtual bool Done() const { return false; }
-  // For sinks that feed a running machine (DESIGN.md: the commit horizon). When WantsStops(),
+  // For sinks that feed a running machine (docs/design.md: the commit horizon). When WantsStops(),
   // after every hand-over the planner offers `stop`: the rows that would follow the last setpoint
   // handed over to bring the machine to rest within every limit along the path (the steps
   // planned up to the last one from which a stop is proven, then the brake law, then the rest held

@@ -1,5 +1,5 @@
 // Output written to a temporary file beside the target and renamed over it on Commit(), so a failed
-// run never leaves a half file behind (DESIGN.md, Conventions).
+// run never leaves a half file behind (docs/design.md, Conventions).
 #pragma once
 
 #include <cstdio>

@@ -1,4 +1,4 @@
-// Static figures of a report (issue 7): every plot of a dtis HTML report as PNG and SVG, for
+// Static figures of a report: every plot of a dtis HTML report as PNG and SVG, for
 // papers. The report itself draws them: a headless Chromium (Debian's `chromium`) opens it with
 // #figures=png,svg in the address, plotly.js exports each plot (Plotly.toImage), and the images
 // come back in the browser's DOM dump. So a figure is the very plot the report shows, drawn by the

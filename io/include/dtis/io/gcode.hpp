@@ -1,5 +1,5 @@
-// G-code programs in the RS274/NGC dialect that LinuxCNC runs, read into moves (issue 4's first
-// step; corner smoothing and planning build on it).
+// G-code programs in the RS274/NGC dialect that LinuxCNC runs, read into moves (corner
+// smoothing and planning build on them).
 //
 // Supported: G0 G1 G2 G3 (arcs in the XY plane, G17, with I/J centre offsets or R), G17, G20/G21,
 // G90/G91, G94, G40/G49/G80 (cancels, accepted), F, N, S, T, M2/M30 (end), M3/M4/M5/M6/M7/M8/M9

@@ -1,4 +1,4 @@
-// A run as one self-contained HTML file (issue 7): the tool path coloured by feed, feed against
+// A run as one self-contained HTML file: the tool path coloured by feed, feed against
 // time with the programmed feed and the constraint that decided each period, every axis'
 // position, velocity, acceleration and jerk against its limits, and the verifier's summary.
 // plotly.js is embedded at report time, so the file opens offline. Long runs are decimated for

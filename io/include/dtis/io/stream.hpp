@@ -1,4 +1,4 @@
-// Feeding a running machine (DESIGN.md: the commit horizon). A job's segments are planned one
+// Feeding a running machine (docs/design.md: the commit horizon). A job's segments are planned one
 // after the other on a worker thread; each setpoint is handed over as soon as back-off can no
 // longer reach it, together with the stop to rest from it, and a feeder writes them to the CNC at
 // its own pace, a bounded number of periods ahead of it. Whatever stops the stream early (an
