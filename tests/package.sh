@@ -28,9 +28,13 @@ if grep -nE '"/[^"]*\.(so|a)"|/usr/lib/[^ ;"]*\.so|'"$build" "$prefix"/lib*/cmak
 fi
 
 samples=$prefix/share/dtis/samples
-(cd "$work" && env -u DTIS_PLOTLY_JS "$prefix/bin/dtis" run "$samples/jobs/line.toml" \
-  -o line.csv --report line.html -q)
-test -s "$work/line.html"
+if [ -s "$prefix/share/dtis/plotly.min.js" ]; then  # not when npm was out of reach at bootstrap
+  (cd "$work" && env -u DTIS_PLOTLY_JS "$prefix/bin/dtis" run "$samples/jobs/line.toml" \
+    -o line.csv --report line.html -q)
+  test -s "$work/line.html"
+else
+  (cd "$work" && "$prefix/bin/dtis" run "$samples/jobs/line.toml" -o line.csv -q)
+fi
 "$prefix/bin/dtis" --version | grep -q "^dtis [0-9]"
 
 cmake -S "$root/examples/plan" -B "$work/example" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" \

@@ -8,6 +8,11 @@ root=$2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
+# The tour writes a report, which needs plotly.js (the npm registry was out of reach at bootstrap):
+# without it, skip.
+plotly=${DTIS_PLOTLY_JS:-$root/tools/report/node_modules/plotly.js-dist-min/plotly.min.js}
+[ -s "$plotly" ] || { echo "readme_tour: skipped: no plotly.js at $plotly (scripts/bootstrap)"; exit 77; }
+
 awk '/<!-- tour:begin -->/ { on = 1; next } /<!-- tour:end -->/ { on = 0 } on && !/^```/' \
   "$root/README.md" >"$work/tour.sh"
 test "$(grep -c '^dtis ' "$work/tour.sh")" -ge 5 || {

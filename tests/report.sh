@@ -13,6 +13,9 @@ out=${3:-$PWD}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
+# Without plotly.js (the npm registry was out of reach at bootstrap) reports cannot be made: skip.
+plotly=${DTIS_PLOTLY_JS:-$root/tools/report/node_modules/plotly.js-dist-min/plotly.min.js}
+[ -s "$plotly" ] || { echo "report: skipped: no plotly.js at $plotly (scripts/bootstrap)"; exit 77; }
 command -v chromium >/dev/null ||
   { echo "report: no chromium; scripts/bootstrap installs it (apt install chromium)" >&2; exit 1; }
 browse() {  # extra chromium arguments..., page
