@@ -40,6 +40,23 @@ void ReportPlanning(benchmark::State& state, long setpoints, double motion,
   state.counters["repairs"] = static_cast<double>(last.profile_repairs);
 }
 
+// A sample benchmarked with each planner, as FUNC/NAME_lookahead and FUNC/NAME_vpop, FUNC taking
+// (state, job file, planner). The paper's planner runs once (it takes seconds on the hard samples);
+// with _ONCE the look-ahead too.
+#define DTIS_PLANNERS(func, name, file)                                    \
+  BENCHMARK_CAPTURE(func, name##_lookahead, file, PlannerKind::kLookAhead) \
+      ->Unit(benchmark::kMillisecond);                                     \
+  BENCHMARK_CAPTURE(func, name##_vpop, file, PlannerKind::kVpop)           \
+      ->Unit(benchmark::kMillisecond)                                      \
+      ->Iterations(1)
+#define DTIS_PLANNERS_ONCE(func, name, file)                               \
+  BENCHMARK_CAPTURE(func, name##_lookahead, file, PlannerKind::kLookAhead) \
+      ->Unit(benchmark::kMillisecond)                                      \
+      ->Iterations(1);                                                     \
+  BENCHMARK_CAPTURE(func, name##_vpop, file, PlannerKind::kVpop)           \
+      ->Unit(benchmark::kMillisecond)                                      \
+      ->Iterations(1)
+
 // A curve or line sample planned alone (the path built once), one thread.
 //   build/bench/dtis_bench --benchmark_filter=Plan/
 void Plan(benchmark::State& state, const char* job_file, PlannerKind planner) {
@@ -59,19 +76,12 @@ void Plan(benchmark::State& state, const char* job_file, PlannerKind planner) {
   ReportPlanning(state, setpoints, motion, last);
 }
 
-#define DTIS_PLAN(name, file)                                              \
-  BENCHMARK_CAPTURE(Plan, name##_lookahead, file, PlannerKind::kLookAhead) \
-      ->Unit(benchmark::kMillisecond);                                     \
-  BENCHMARK_CAPTURE(Plan, name##_vpop, file, PlannerKind::kVpop)           \
-      ->Unit(benchmark::kMillisecond)                                      \
-      ->Iterations(1)
-DTIS_PLAN(line, "samples/jobs/line.toml");
-DTIS_PLAN(trident, "samples/jobs/trident.toml");
-DTIS_PLAN(circle, "samples/jobs/circle.toml");
-DTIS_PLAN(circle_300, "samples/jobs/circle_300.toml");
-DTIS_PLAN(open_pocket_bottom, "samples/jobs/open_pocket_bottom.toml");
-DTIS_PLAN(open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml");
-#undef DTIS_PLAN
+DTIS_PLANNERS(Plan, line, "samples/jobs/line.toml");
+DTIS_PLANNERS(Plan, trident, "samples/jobs/trident.toml");
+DTIS_PLANNERS(Plan, circle, "samples/jobs/circle.toml");
+DTIS_PLANNERS(Plan, circle_300, "samples/jobs/circle_300.toml");
+DTIS_PLANNERS(Plan, open_pocket_bottom, "samples/jobs/open_pocket_bottom.toml");
+DTIS_PLANNERS(Plan, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml");
 
 }  // namespace
 
@@ -158,17 +168,9 @@ void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind p
   }
   ReportPlanning(state, setpoints, motion, last);
 }
-#define DTIS_SURFACE_PLANNER(name, file, vpop_iterations)                            \
-  BENCHMARK_CAPTURE(SurfacePlanner, name##_lookahead, file, PlannerKind::kLookAhead) \
-      ->Unit(benchmark::kMillisecond)                                                \
-      ->Iterations(1);                                                               \
-  BENCHMARK_CAPTURE(SurfacePlanner, name##_vpop, file, PlannerKind::kVpop)           \
-      ->Unit(benchmark::kMillisecond)                                                \
-      ->Iterations(vpop_iterations)
-DTIS_SURFACE_PLANNER(tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml", 1);
-DTIS_SURFACE_PLANNER(tilt10_singular, "samples/jobs/surface_tilt10_singular.toml", 1);
-DTIS_SURFACE_PLANNER(plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml", 1);
-#undef DTIS_SURFACE_PLANNER
+DTIS_PLANNERS_ONCE(SurfacePlanner, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml");
+DTIS_PLANNERS_ONCE(SurfacePlanner, tilt10_singular, "samples/jobs/surface_tilt10_singular.toml");
+DTIS_PLANNERS_ONCE(SurfacePlanner, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml");
 
 BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
     ->Arg(1)
@@ -253,28 +255,9 @@ void GcodePlanSample(benchmark::State& state, const char* job_file, PlannerKind 
   job.vpop.planner = planner;
   GcodePlanOn(state, dtis::io::ReadGcode(job.path.gcode_file), job);
 }
-BENCHMARK_CAPTURE(GcodePlanSample, lock_lookahead, "samples/jobs/lock.toml",
-                  PlannerKind::kLookAhead)
-    ->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(GcodePlanSample, lock_vpop, "samples/jobs/lock.toml", PlannerKind::kVpop)
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
-BENCHMARK_CAPTURE(GcodePlanSample, fine_wave_lookahead, "samples/jobs/fine_wave.toml",
-                  PlannerKind::kLookAhead)
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
-BENCHMARK_CAPTURE(GcodePlanSample, fine_wave_vpop, "samples/jobs/fine_wave.toml",
-                  PlannerKind::kVpop)
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
-BENCHMARK_CAPTURE(GcodePlanSample, five_axis_g1_lookahead, "samples/jobs/five_axis_g1.toml",
-                  PlannerKind::kLookAhead)
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
-BENCHMARK_CAPTURE(GcodePlanSample, five_axis_g1_vpop, "samples/jobs/five_axis_g1.toml",
-                  PlannerKind::kVpop)
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(1);
+DTIS_PLANNERS(GcodePlanSample, lock, "samples/jobs/lock.toml");
+DTIS_PLANNERS_ONCE(GcodePlanSample, fine_wave, "samples/jobs/fine_wave.toml");
+DTIS_PLANNERS_ONCE(GcodePlanSample, five_axis_g1, "samples/jobs/five_axis_g1.toml");
 
 void GcodePlan100k(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
@@ -344,3 +327,6 @@ void GcodeLoad1M(benchmark::State& state) {
 BENCHMARK(GcodeLoad1M)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
+
+#undef DTIS_PLANNERS
+#undef DTIS_PLANNERS_ONCE
