@@ -139,8 +139,8 @@ def kernel_table(b):
         r = b["GcodeRead"]
         rows.append(f"| `GcodeRead` | {duration(time_of(r))} | 100 000 blocks read: "
                     f"{r['blocks_per_s'] / 1e6:.1f} million blocks/s |")
-    if "GcodeLoad1M/iterations:1" in b or "GcodeLoad1M" in b:
-        r = b.get("GcodeLoad1M/iterations:1") or b["GcodeLoad1M"]
+    if "GcodeLoad1M" in b:
+        r = b["GcodeLoad1M"]
         rows.append(f"| `GcodeLoad1M` | {duration(time_of(r))} | 1 000 000 G1 blocks read and "
                     f"smoothed, {r['corners']:.0f} corners, peak {r['peak_rss_mb']:.0f} MB |")
     for name, what in (("ExportChordalCircle1um", "G1 export of a NURBS circle at 1 µm"),

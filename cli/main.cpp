@@ -116,8 +116,7 @@ void ApplyPlanner(const std::string& planner, dtis::io::Job* job) {
         "which has no planner to choose",
         planner, job->file);
   }
-  job->vpop.planner =
-      planner == "vpop" ? dtis::interp::PlannerKind::kVpop : dtis::interp::PlannerKind::kLookAhead;
+  job->vpop.planner = *dtis::interp::PlannerFromName(planner);  // CLI11 checked the name
 }
 
 const char* const kPlannerHelp =
@@ -165,7 +164,7 @@ struct CompareArgs {
 };
 
 int Compare(const CompareArgs& a) {
-  const dtis::io::Job job = dtis::io::LoadJob(a.job);
+  dtis::io::Job job = dtis::io::LoadJob(a.job);
   const std::string plotly =
       a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
   dtis::io::CompareOptions options;
@@ -178,9 +177,8 @@ int Compare(const CompareArgs& a) {
                            : dtis::interp::PlannerKind::kVpop;
     options.planners = {job.vpop.planner, other};
   } else {
-    dtis::io::Job override = job;
-    ApplyPlanner(a.planner, &override);
-    options.planners = {override.vpop.planner};
+    ApplyPlanner(a.planner, &job);
+    options.planners = {job.vpop.planner};
   }
   const bool tty = !a.quiet && isatty(fileno(stderr));
   options.progress = [tty](const std::string& variant) {
@@ -201,7 +199,7 @@ int Compare(const CompareArgs& a) {
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;
     in.compare = &result;
-    in.shown = fmt::format("{} ({})", exact.name, dtis::interp::PlannerName(exact.planner));
+    in.shown = dtis::io::VariantLabel(exact);
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
   }
   if (csv) csv->Commit();
@@ -408,10 +406,7 @@ int Serve(const ServeArgs& a) {
   o.stream.realtime = a.pace == "realtime";
   const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
   if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
-  if (!a.planner.empty()) {
-    o.planner = a.planner == "vpop" ? dtis::interp::PlannerKind::kVpop
-                                    : dtis::interp::PlannerKind::kLookAhead;
-  }
+  if (!a.planner.empty()) o.planner = dtis::interp::PlannerFromName(a.planner);
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
   StreamOutput output(a.to, *machine, a.index, a.buffer);
   std::signal(SIGPIPE, SIG_IGN);

@@ -62,6 +62,13 @@ const char* PlannerName(PlannerKind planner) {
   return planner == PlannerKind::kLookAhead ? "lookahead" : "vpop";
 }
 
+std::optional<PlannerKind> PlannerFromName(std::string_view name) {
+  for (const PlannerKind planner : {PlannerKind::kVpop, PlannerKind::kLookAhead}) {
+    if (name == PlannerName(planner)) return planner;
+  }
+  return std::nullopt;
+}
+
 bool VpopOptions::IsValid(std::string* why) const {
   const auto fail = [why](std::string message) {
     if (why) *why = std::move(message);

@@ -445,6 +445,10 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   return r;
 }
 
+std::string VariantLabel(const VariantResult& variant) {
+  return fmt::format("{} ({})", variant.name, interp::PlannerName(variant.planner));
+}
+
 const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner) {
   const VariantResult* found = nullptr;
   for (const auto& v : result.variants) {

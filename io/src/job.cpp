@@ -273,8 +273,7 @@ Job ReadJob(TomlTable& root) {
       if (job.interpolator != InterpolatorKind::kVpop) {
         in->Fail("planner", "only used by kind = \"vpop\"");
       }
-      job.vpop.planner =
-          *pl == "vpop" ? interp::PlannerKind::kVpop : interp::PlannerKind::kLookAhead;
+      job.vpop.planner = *interp::PlannerFromName(*pl);
     }
     if (auto f = in->OptionalPositiveNumber("limit_fraction")) {
       if (*f > 1.0)

@@ -421,7 +421,7 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
       // The variant the report shows in full has its feed already.
       ordered_json series =
           Series(v.table.t, &v.table == in.table ? feed : Tip(machine, v.table, dt).feed);
-      series["name"] = fmt::format("{} ({})", v.name, interp::PlannerName(v.planner));
+      series["name"] = VariantLabel(v);
       feeds.push_back(std::move(series));
     }
     data["compare"] = {{"header", CompareHeader()},

@@ -41,6 +41,8 @@ enum class PlannerKind : std::uint8_t {
   kLookAhead,
 };
 const char* PlannerName(PlannerKind planner);
+// The planner PlannerName gives `name` ("vpop" or "lookahead"), if any.
+std::optional<PlannerKind> PlannerFromName(std::string_view name);
 
 struct VpopOptions {
   PlannerKind planner = PlannerKind::kVpop;

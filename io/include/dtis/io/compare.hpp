@@ -67,6 +67,9 @@ struct CompareResult {
 // Throws dtis::Error naming the job, pass and what failed.
 CompareResult RunCompare(const Job& job, const CompareOptions& options = {});
 
+// A variant as plots and headings name it: "DTIS (exact surface) (vpop)".
+std::string VariantLabel(const VariantResult& variant);
+
 // The exact-surface variant planned with `planner` (the last exact variant when none was).
 const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner);
 
