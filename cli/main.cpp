@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -45,28 +46,52 @@ constexpr const char* kExitStatusHelp =
     "Exit status: 0 ok; 1 bad input (file, option value or request); 2 usage (the command line); "
     "3 the setpoints fail the verifier; 4 internal error; 5 a stream ended early, at rest.\n";
 
-// A progress line on a terminal only: pipes and files stay clean. Segments finish on several
-// threads, whose counts may arrive out of order: the line only moves forward.
+// A progress line on a terminal only (pipes and files stay clean; -q silences it): the phase, and
+// while planning a bar by the share of the path planned (it moves within a segment too), the motion
+// time planned and the segments finished. Redrawn at most 20 times a second, and at each new phase.
 class Progress {
  public:
   explicit Progress(bool enabled) : enabled_(enabled && isatty(fileno(stderr))) {}
-  void Update(int done, int total) {
+  ~Progress() { Clear(); }
+  Progress(const Progress&) = delete;
+  Progress& operator=(const Progress&) = delete;
+
+  void Show(const dtis::io::RunProgress& p) {
     if (!enabled_) return;
     std::lock_guard lock(mutex_);
-    if (done < shown_) return;
-    shown_ = done;
-    constexpr int kWidth = 30;
-    const int filled = total ? kWidth * done / total : kWidth;
-    std::fprintf(stderr, "\rplanning [%s%s] %d/%d segments", std::string(filled, '#').c_str(),
-                 std::string(kWidth - filled, '.').c_str(), done, total);
-    if (done == total) std::fputs("\r\033[K", stderr);
+    const auto now = std::chrono::steady_clock::now();
+    if (p.phase == phase_ && now - last_ < std::chrono::milliseconds(50)) return;
+    phase_ = p.phase;
+    last_ = now;
+    if (p.fraction < 0.0) {
+      std::fprintf(stderr, "\r\033[K%.*s ...", static_cast<int>(p.phase.size()), p.phase.data());
+    } else {
+      constexpr int kWidth = 30;
+      const int filled = static_cast<int>(kWidth * p.fraction);
+      std::fprintf(stderr, "\r\033[K%.*s [%s%s] %3.0f%%  %.3f s of motion  %d/%d",
+                   static_cast<int>(p.phase.size()), p.phase.data(),
+                   std::string(filled, '#').c_str(), std::string(kWidth - filled, '.').c_str(),
+                   100.0 * p.fraction, p.motion_s, p.segments_done, p.segments);
+    }
     std::fflush(stderr);
+    shown_ = true;
+  }
+  void Phase(std::string_view phase) { Show({phase}); }
+  void Clear() {
+    if (!enabled_ || !shown_) return;
+    std::lock_guard lock(mutex_);
+    std::fputs("\r\033[K", stderr);
+    std::fflush(stderr);
+    shown_ = false;
+    phase_ = {};
   }
 
  private:
   bool enabled_;
+  bool shown_ = false;
   std::mutex mutex_;
-  int shown_ = 0;
+  std::string phase_;
+  std::chrono::steady_clock::time_point last_{};
 };
 
 // A surface job's face for its report. A face OpenCASCADE cannot mesh costs the report its
@@ -98,10 +123,14 @@ dtis::io::ReportInput PlannedReport(std::string title, const dtis::Machine& mach
   return in;
 }
 
-// A job's report: `in` with the job's programmed feed and, for a surface job, its face.
+// A job's report: `in` with the job's programmed feed, what the job is (before `in`'s own header
+// rows) and, for a surface job, its face.
 std::string RenderJobReport(const dtis::io::Job& job, dtis::io::ReportInput in,
                             const std::string& plotly) {
   in.programmed_feed_mm_min = job.vpop.feed_mm_s * 60.0;
+  std::vector<dtis::io::ReportFact> about = dtis::io::JobFacts(job, *in.machine);
+  about.insert(about.end(), in.about.begin(), in.about.end());
+  in.about = std::move(about);
   const auto surface = ReportSurface(job);
   if (surface) in.surface = &*surface;
   return dtis::io::RenderReport(in, plotly);
@@ -123,38 +152,57 @@ const char* const kPlannerHelp =
     "vpop (the paper's back-off) or lookahead (the exact step capped by the viable feeds "
     "ahead); overrides the job's [interpolator] planner";
 
-int Run(const std::string& job_path, const std::string& output, const std::string& limiters,
-        const std::string& report, bool quiet, int threads, long horizon,
-        const std::string& planner) {
-  dtis::io::Job job = dtis::io::LoadJob(job_path);
-  if (horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(horizon);
-  ApplyPlanner(planner, &job);
-  std::string setpoints = !output.empty()              ? output
+struct RunArgs {
+  std::string job, output, limiters, report, planner;
+  bool quiet = false, keep_failed = false;
+  int threads = 0;
+  long horizon = 0;
+};
+
+int Run(const RunArgs& a) {
+  dtis::io::Job job = dtis::io::LoadJob(a.job);
+  if (a.horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(a.horizon);
+  ApplyPlanner(a.planner, &job);
+  std::string setpoints = !a.output.empty()            ? a.output
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
-  const std::string limiter_file = !limiters.empty() ? limiters : job.limiters_out;
-  const std::string plotly = report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
-  Progress progress(!quiet);
+  const std::string limiter_file = !a.limiters.empty() ? a.limiters : job.limiters_out;
+  const std::string plotly =
+      a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
+  Progress progress(!a.quiet);
   dtis::io::RunOptions options;
-  options.threads = threads;
-  options.progress = [&progress](int done, int total) { progress.Update(done, total); };
+  options.threads = a.threads;
+  options.progress = [&progress](const dtis::io::RunProgress& p) { progress.Show(p); };
   const dtis::io::RunResult result = dtis::io::RunJob(job, options);
-  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file);
-  if (!report.empty()) {
+  // Setpoints that break a limit never reach a file a machine could be fed from, unless asked
+  // for (to study them).
+  const bool failed = !dtis::io::FitToWrite(job, result);
+  if (failed && !a.keep_failed) {
+    progress.Clear();
+    if (!a.quiet) std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
+    std::fprintf(stderr,
+                 "dtis: %s: the verifier fails these setpoints (worst ratio %.9f, %s): nothing "
+                 "written; --keep-failed writes them anyway\n",
+                 job.file.c_str(), result.verify.worst_ratio, result.verify.worst.c_str());
+    return kExitVerifyFailed;
+  }
+  progress.Phase("writing");
+  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file, a.keep_failed);
+  if (!a.report.empty()) {
+    progress.Phase("writing the report");
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
-    dtis::io::WriteFileAtomically(report, RenderJobReport(job, std::move(in), plotly));
+    dtis::io::WriteFileAtomically(a.report, RenderJobReport(job, std::move(in), plotly));
   }
-  if (!quiet) {
+  progress.Clear();
+  if (!a.quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
     std::fprintf(stderr, "wrote            %s%s%s%s%s\n", setpoints.c_str(),
-                 limiter_file.empty() ? "" : ", ", limiter_file.c_str(), report.empty() ? "" : ", ",
-                 report.c_str());
+                 limiter_file.empty() ? "" : ", ", limiter_file.c_str(),
+                 a.report.empty() ? "" : ", ", a.report.c_str());
   }
-  return result.verify.Passed() || job.interpolator != dtis::io::InterpolatorKind::kVpop
-             ? 0
-             : kExitVerifyFailed;
+  return failed ? kExitVerifyFailed : 0;
 }
 
 struct CompareArgs {
@@ -180,12 +228,12 @@ int Compare(const CompareArgs& a) {
     ApplyPlanner(a.planner, &job);
     options.planners = {job.vpop.planner};
   }
-  const bool tty = !a.quiet && isatty(fileno(stderr));
-  options.progress = [tty](const std::string& variant) {
-    if (tty) std::fprintf(stderr, "\r\033[Kexporting and planning %s ...", variant.c_str());
+  Progress progress(!a.quiet);
+  options.progress = [&progress](const std::string& variant) {
+    progress.Phase("exporting and planning " + variant);
   };
   const dtis::io::CompareResult result = dtis::io::RunCompare(job, options);
-  if (tty) std::fputs("\r\033[K", stderr);
+  progress.Clear();
   // The tables and the report land together or not at all.
   std::optional<dtis::io::AtomicFile> csv, md, html;
   if (!a.csv.empty()) csv.emplace(a.csv).Write(dtis::io::FormatCompareCsv(result));
@@ -453,6 +501,8 @@ int Report(const ReportArgs& a) {
   const std::string file = std::filesystem::path(a.setpoints).filename().string();
   dtis::io::ReportInput in;
   in.title = job ? fmt::format("{} ({})", job->name, file) : file;
+  in.about = {{"setpoints", a.setpoints}};
+  if (!job) in.about.push_back({"machine", fmt::format("{} ({})", machine->Name(), a.machine)});
   in.machine = machine.get();
   in.table = &table;
   in.limiters = std::move(limiters);
@@ -462,13 +512,21 @@ int Report(const ReportArgs& a) {
   return 0;
 }
 
-int Figures(const std::string& report, const std::string& out_dir,
-            const dtis::io::FigureOptions& options, bool quiet) {
+int Figures(const std::string& report, const std::string& out_dir, dtis::io::FigureOptions options,
+            bool quiet) {
+  Progress progress(!quiet);
+  std::string line;
+  options.waiting = [&](double elapsed_s) {
+    line = fmt::format("drawing the figures in Chromium: {:.0f} s (at most {:g} s)", elapsed_s,
+                       options.timeout_s);
+    progress.Phase(line);
+  };
   const auto files = dtis::io::ExportFigures(
       report,
       out_dir.empty() ? std::filesystem::path(report).replace_extension("").string() + "_figures"
                       : out_dir,
       options);
+  progress.Clear();
   if (!quiet) {
     for (const auto& f : files) std::fprintf(stderr, "wrote            %s\n", f.c_str());
   }
@@ -495,28 +553,26 @@ int main(int argc, char** argv) {
       "run",
       "Plan a job (TOML) and write its setpoints as CSV (t, X, Y, Z then rotary axes in "
       "degrees), atomically. Prints a summary on stderr.");
-  std::string job, output, limiters;
-  bool quiet = false;
-  run->add_option("JOB", job, "job file (see samples/jobs/)")->required();
-  run->add_option("-o,--output", output,
+  RunArgs ra_run;
+  run->add_option("JOB", ra_run.job, "job file (see samples/jobs/)")->required();
+  run->add_option("-o,--output", ra_run.output,
                   "setpoint file (default: the job's [output] setpoints, else NAME.csv)");
-  run->add_option("--limiters", limiters,
+  run->add_option("--limiters", ra_run.limiters,
                   "also write, per setpoint, the arc length, feed and which constraint limited it");
-  std::string run_report;
-  run->add_option("--report", run_report,
+  run->add_option("--report", ra_run.report,
                   "also write a self-contained HTML report (tool path by feed, feed, every axis "
                   "against its limits)");
-  run->add_flag("-q,--quiet", quiet, "print nothing on success");
-  long run_horizon = 0;
-  run->add_option("--horizon", run_horizon,
+  run->add_flag("-q,--quiet", ra_run.quiet, "print nothing on success");
+  run->add_flag("--keep-failed", ra_run.keep_failed,
+                "write the outputs even when the verifier fails the setpoints (exit status 3 "
+                "all the same); without it such a run writes nothing");
+  run->add_option("--horizon", ra_run.horizon,
                   "commit horizon, periods (overrides the job's): plans what `dtis stream "
                   "--horizon` with the same value sends")
       ->check(CLI::Range(8L, 1L << 30));
-  std::string run_planner;
-  run->add_option("--planner", run_planner, kPlannerHelp)
+  run->add_option("--planner", ra_run.planner, kPlannerHelp)
       ->check(CLI::IsMember({"vpop", "lookahead"}));
-  int threads = 0;
-  run->add_option("-j,--threads", threads,
+  run->add_option("-j,--threads", ra_run.threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
       ->check(CLI::NonNegativeNumber);
 
@@ -689,9 +745,7 @@ int main(int argc, char** argv) {
   try {
     if (*report) return Report(ra);
     if (*figures) return Figures(figures_report, figures_dir, fo, figures_quiet);
-    if (*run) {
-      return Run(job, output, limiters, run_report, quiet, threads, run_horizon, run_planner);
-    }
+    if (*run) return Run(ra_run);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);
     if (*verify) return Verify(setpoints, machine);

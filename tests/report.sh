@@ -2,7 +2,8 @@
 # HTML reports in headless Chromium. Every sample job's `dtis run --report`, a `dtis
 # compare --report`, a `dtis stream --report` and a `dtis report --job --limiters` must render with
 # no script or console error, hold the expected plots and traces, and show the numbers `dtis verify`
-# prints for the same setpoints; `dtis figures` must write every plot as a PNG and an SVG. Keeps a
+# prints for the same setpoints, and name the machine and dtis version in their header; with WebGL
+# off every plot is drawn in SVG; `dtis figures` must write every plot as a PNG and an SVG. Keeps a
 # screenshot of the 5-axis report and its figures in OUTDIR (default: the current folder, ctest's
 # build/tests).
 # Usage: report.sh DTIS ROOT [OUTDIR]
@@ -67,6 +68,34 @@ check() {
     echo "ok $name: $plots plots, $traces traces, motion time $time_v s, worst ratio $ratio_v"
   fi
 }
+# check_without_webgl NAME HTML PLOTS: with WebGL off (--disable-3d-apis) the page renders every
+# plot in SVG (the tool path from above) and shows no "WebGL is not supported"; with WebGL on (the
+# DOM check() read) every plot but the 3-D path is SVG too. Its header names the machine and the
+# dtis version.
+check_without_webgl() {
+  local name=$1 html=$2 want_plots=$3 body problem=""
+  browse --disable-3d-apis --dump-dom "file://$html" >"$work/$name.nogl.dom" 2>/dev/null
+  body=$(grep -o '<body[^>]*>' "$work/$name.nogl.dom")
+  grep -q 'data-webgl="no"' <<<"$body" || problem="WebGL was not off"
+  grep -q 'data-report-status="ok"' <<<"$body" || problem="$problem; status not ok: $body"
+  grep -q "data-drawn2d=\"$want_plots\"" <<<"$body" ||
+    problem="$problem; not every one of $want_plots plots drawn in SVG: $body"
+  # The library's own text is in a script; the page's is not.
+  perl -0pe 's/<script.*?<\/script>//gs' "$work/$name.nogl.dom" | grep -q "WebGL is not supported" &&
+    problem="$problem; the page says WebGL is not supported"
+  body=$(grep -o '<body[^>]*>' "$work/$name.dom")
+  grep -q "data-drawn2d=\"$((want_plots - 1))\"" <<<"$body" ||
+    problem="$problem; with WebGL, not every 2-D plot drawn in SVG: $body"
+  grep -qF "|dtis|$("$dtis" --version | cut -d' ' -f2)|" "$work/$name.text" ||
+    problem="$problem; no dtis version in its header"
+  grep -qF "|machine|" "$work/$name.text" || problem="$problem; no machine in its header"
+  if [ -n "$problem" ]; then
+    echo "FAIL $name without WebGL: ${problem#; }"
+    failures=$((failures + 1))
+  else
+    echo "ok $name without WebGL: $want_plots plots in SVG"
+  fi
+}
 axes_of() { echo $(($(head -1 "$1" | tr ',' '\n' | wc -l) - 1)); }
 # Traces of a run's report: path (+ tool axis in 5-axis, + surface), feed (+ programmed feed,
 # + deciding constraint), per axis 4 series and 6 limit lines.
@@ -85,6 +114,7 @@ for job in "$root"/samples/jobs/*.toml; do
   min=$(path_traces "$work/$name.csv" "$job")
   check "$name" "$work/$name.html" "$work/$name.csv" "$(machine_of "$job")" \
     $((2 + $(axes_of "$work/$name.csv"))) "$min" $((min + 2))
+  check_without_webgl "$name" "$work/$name.html" $((2 + $(axes_of "$work/$name.csv")))
 done
 
 # The 5-axis surface job three more ways.
@@ -107,6 +137,7 @@ grep '^DTIS' "$work/compare.csv" >/dev/null
 # The exact variant's setpoints are the run's (the same passes and links, planned the same way).
 check compare "$work/compare.html" "$work/$name.csv" "$machine" 8 \
   $((min + 2 + ${#variants[@]} + 1)) $((min + 2 + ${#variants[@]} + 1)) "${variants[@]}"
+check_without_webgl compare "$work/compare.html" 8
 
 # Static figures: every plot of the report, as PNG (1200 px wide) and SVG.
 "$dtis" figures "$work/$name.html" -o "$out/figures_$name" -q

@@ -9,8 +9,11 @@
 #include <GProp_GProps.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <cmath>
+#include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 
+#include "dtis/core/version.hpp"
 #include "dtis/geometry/face_mesh.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/step_model.hpp"
@@ -33,6 +36,27 @@ TEST(Limiters, NamesReadBack) {
   }
   EXPECT_EQ(interp::LimiterFromName("warp"), std::nullopt);
   EXPECT_EQ(interp::LimiterFromName(""), std::nullopt);
+}
+
+// Setpoints the verifier fails are written only when asked for: a jump of 1 mm in X on the line.
+TEST(RunOutputs, SetpointsTheVerifierFailsAreNotWrittenUnlessKept) {
+  const Job job = LoadJob(test::Source("samples/jobs/line.toml"));
+  RunResult r = RunJob(job);
+  ASSERT_TRUE(FitToWrite(job, r));
+  auto& x = r.table.columns[0];
+  for (std::size_t k = x.size() / 2; k < x.size(); ++k) x[k] += 1.0;
+  r.verify = interp::Verify(r.table, *r.machine);
+  ASSERT_FALSE(r.verify.Passed());
+  EXPECT_FALSE(FitToWrite(job, r));
+  const std::string setpoints = test::Scratch("failed.csv"),
+                    limiters = test::Scratch("failed_l.csv");
+  ExpectError([&] { WriteRunOutputs(job, r, setpoints, limiters); },
+              "the verifier fails these setpoints (worst ratio");
+  EXPECT_FALSE(std::filesystem::exists(setpoints));
+  EXPECT_FALSE(std::filesystem::exists(limiters));
+  WriteRunOutputs(job, r, setpoints, limiters, /*keep_failed=*/true);
+  EXPECT_TRUE(std::filesystem::exists(setpoints));
+  EXPECT_TRUE(std::filesystem::exists(limiters));
 }
 
 TEST(Limiters, ReportReadsBackWhatARunWrote) {
@@ -153,6 +177,89 @@ TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
   double peak = 0.0;
   for (const auto& f : data["compare"]["feeds"][0]["y"]) peak = std::max(peak, f.get<double>());
   EXPECT_NEAR(peak, 5000.0, 1e-6);
+}
+
+// The header names what the run is; the report adds the version of dtis that made it and when.
+TEST(Report, HeaderNamesMachineJobPartFaceToolStrategyVersionAndDate) {
+  const Job job = LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
+  const RunResult r = RunJob(job);
+  ReportInput in;
+  in.title = job.name;
+  in.machine = r.machine.get();
+  in.table = &r.table;
+  in.verify = &r.verify;
+  in.about = JobFacts(job, *r.machine);
+  const nlohmann::json data = ReportData(RenderReport(in, "/* plotly */"));
+  std::map<std::string, std::string> about;
+  for (const auto& row : data["about"]) about[row[0]] = row[1];
+  EXPECT_EQ(about["job"], job.file);
+  EXPECT_NE(about["machine"].find(r.machine->Name()), std::string::npos);
+  EXPECT_EQ(about["part"], job.surface->step_file);
+  EXPECT_EQ(about["face"], "1");
+  EXPECT_EQ(about["tool"], job.surface->tool.Describe());
+  EXPECT_EQ(about["strategy"], "plane_cl");
+  EXPECT_EQ(about["dtis"], std::string(kVersion));
+  EXPECT_EQ(about["made"].size(), std::string("2026-11-24 20:16:05 +0000").size());
+  EXPECT_EQ(data["about"].back()[0], "made");
+}
+
+// What RunOptions::progress hears: the phases in order; while planning, a share of the path that
+// never goes back and ends whole, and the motion time planned, which ends at the plan's own.
+struct Heard {
+  std::vector<std::string> phases;
+  std::map<std::string, std::vector<RunProgress>> reports;
+};
+Heard Listen(const std::string& job_file, RunResult* result) {
+  Heard heard;
+  RunOptions options;
+  options.progress = [&heard](const RunProgress& p) {
+    const std::string phase(p.phase);
+    if (heard.phases.empty() || heard.phases.back() != phase) heard.phases.push_back(phase);
+    heard.reports[phase].push_back(p);
+  };
+  *result = RunJob(LoadJob(test::Source(job_file)), options);
+  return heard;
+}
+void ExpectForwardToTheEnd(const std::vector<RunProgress>& reports, double motion_s,
+                           double tolerance_s = 1e-9) {
+  ASSERT_FALSE(reports.empty());
+  for (std::size_t k = 1; k < reports.size(); ++k) {
+    EXPECT_GE(reports[k].fraction, reports[k - 1].fraction) << k;
+    EXPECT_GE(reports[k].motion_s, reports[k - 1].motion_s) << k;
+    EXPECT_GE(reports[k].segments_done, reports[k - 1].segments_done) << k;
+  }
+  EXPECT_GE(reports.front().fraction, 0.0);
+  EXPECT_NEAR(reports.back().fraction, 1.0, 1e-9);
+  EXPECT_NEAR(reports.back().motion_s, motion_s, tolerance_s);
+  EXPECT_EQ(reports.back().segments_done, reports.back().segments);
+}
+
+TEST(Progress, ASurfaceJobNamesItsPhasesAndPlansToTheEnd) {
+  RunResult r;
+  const Heard heard = Listen("samples/jobs/surface_plane_cl_3axis.toml", &r);
+  EXPECT_EQ(heard.phases,
+            (std::vector<std::string>{"reading STEP", "tracing passes", "planning passes",
+                                      "planning links", "verifying"}));
+  // Each pass' time, to the periods at rest that end it.
+  ExpectForwardToTheEnd(heard.reports.at("planning passes"), r.pass_motion_s,
+                        4.5 * r.verify.period_s * r.passes);
+  // The links' time counts on from the passes'; the whole is the program's, to the periods at
+  // rest after its last move (the planner holds the rest a few periods).
+  ExpectForwardToTheEnd(heard.reports.at("planning links"), r.verify.motion_time_s,
+                        4.5 * r.verify.period_s);
+  EXPECT_EQ(heard.reports.at("planning passes").back().segments, r.passes);
+  // Within a pass, not only when one ends: more reports than passes.
+  EXPECT_GT(heard.reports.at("planning passes").size(), static_cast<std::size_t>(r.passes) + 1);
+}
+
+TEST(Progress, ACurveMovesWithinItsOneSegment) {
+  RunResult r;
+  const Heard heard = Listen("samples/jobs/circle.toml", &r);
+  EXPECT_EQ(heard.phases, (std::vector<std::string>{"planning", "verifying"}));
+  const auto& planning = heard.reports.at("planning");
+  // Reports at most 20 a second, but always the first and the last.
+  ASSERT_GE(planning.size(), 2u);
+  ExpectForwardToTheEnd({planning.front(), planning.back()}, r.vpop.motion_time_s);
 }
 
 TEST(Figures, Base64DecodesTheRfcVectors) {

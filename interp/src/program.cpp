@@ -23,10 +23,17 @@ class VectorSink final : public SetpointSink {
 using Planned = PlannedSegment;
 
 void PlanOne(const ProgramSegment& seg, const Machine& machine, const VpopOptions& options,
-             Planned* out) {
+             Planned* out, std::function<void(double, double)> advance = {}) {
   try {
     VectorSink sink;
-    out->summary = PlanVpop(*seg.path, machine, options, sink);
+    VpopOptions o = options;
+    if (advance) o.progress = advance;
+    out->summary = PlanVpop(*seg.path, machine, o, sink);
+    // Its whole time, the periods at rest that hand over to the next segment included.
+    if (advance) {
+      advance(out->summary.end_s,
+              static_cast<double>(out->summary.setpoints - 1) * options.period_s);
+    }
     out->rows = std::move(sink.rows);
     out->error = nullptr;
   } catch (const Error& e) {
@@ -77,7 +84,11 @@ std::vector<PlannedSegment> PlanSegments(const std::vector<ProgramSegment>& segm
   }
   oneapi::tbb::parallel_for(0, n, [&](int k) {
     const auto i = static_cast<std::size_t>(k);
-    PlanOne(segments[i], machine, segments[i].options, &planned[i]);
+    std::function<void(double, double)> advance;
+    if (options.advance) {
+      advance = [&options, k](double s, double t) { options.advance(k, s, t); };
+    }
+    PlanOne(segments[i], machine, segments[i].options, &planned[i], std::move(advance));
     const int d = ++done;
     if (options.progress) options.progress(d, n);
   });

@@ -632,6 +632,7 @@ const std::vector<std::pair<double, double>>* Planner::SlowCurve(const SlowPoint
     o.start_feed_mm_s = std::min(point.feed_mm_s, o_.feed_mm_s);
     o.commit_horizon = 64;
     o.previous_q = near.q;
+    o.progress = nullptr;  // a backward plan is no progress of this one
     const ReversedPath reversed(path_, point.s);
     BackwardCurve sink(point.s, o.start_feed_mm_s, o_.feed_mm_s, dt_);
     try {
@@ -1280,6 +1281,7 @@ VpopSummary Planner::Run() {
       profile_->Advance(h.p0->s, h.p0->state, h.p0->q, At(std::max(base_, committed_ - 3)).s);
       summary_.profile_grid_points = profile_->GridPoints();
     }
+    if (o_.progress && (j & 255) == 0) o_.progress(h.p0->s, static_cast<double>(j) * dt_);
     Step next;
     if (Produce(h, Mode::kGreedy, &next)) {
       steps_.push_back(next);

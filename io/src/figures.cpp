@@ -66,10 +66,10 @@ class TempDir {
   fs::path path_;
 };
 
-// Runs `argv` with stdout and stderr to files; kills it after `timeout_s`. Returns its exit status
-// (-1: killed for the timeout).
+// Runs `argv` with stdout and stderr to files; kills it after `timeout_s`, calling `waiting` with
+// the time taken about twice a second. Returns its exit status (-1: killed for the timeout).
 int RunProcess(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err,
-               double timeout_s) {
+               double timeout_s, const std::function<void(double)>& waiting) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
@@ -90,8 +90,12 @@ int RunProcess(const std::vector<std::string>& argv, const fs::path& out, const 
   posix_spawn_file_actions_destroy(&actions);
   posix_spawnattr_destroy(&attr);
   if (rc != 0) throw Error("cannot run {}: {}", argv[0], std::strerror(rc));
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  for (;;) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto deadline = start + std::chrono::duration<double>(timeout_s);
+  for (int polls = 0;; ++polls) {
+    if (waiting && polls % 10 == 0) {
+      waiting(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
     int status = 0;
     const pid_t done = waitpid(pid, &status, WNOHANG);
     if (done == pid) {
@@ -234,7 +238,7 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
                                          "--user-data-dir=" + (temp.Path() / "profile").string(),
                                          "--dump-dom",
                                          url};
-  const int status = RunProcess(argv, dom, log, options.timeout_s);
+  const int status = RunProcess(argv, dom, log, options.timeout_s, options.waiting);
   if (status == -1) {
     throw Error("{}: the browser ({}) did not finish drawing the figures in {:g} s", report_html,
                 browser, options.timeout_s);

@@ -2,11 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <atomic>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <future>
+#include <mutex>
 #include <numbers>
 
 #include "dtis/core/error.hpp"
@@ -378,6 +380,99 @@ std::unique_ptr<PathSource> BuildPath(const Job& job) {
 
 namespace {
 
+// Turns what the planners report into RunProgress for RunOptions::progress: the share of a phase's
+// path length planned (summed over segments planned in parallel) and the motion time planned, at
+// most 20 times a second while planning, and once at each phase's start and segment's end.
+class ProgressMeter {
+ public:
+  explicit ProgressMeter(const RunOptions& options) : report_(options.progress) {}
+
+  explicit operator bool() const { return static_cast<bool>(report_); }
+
+  // A phase measured by nothing but its name.
+  void Phase(std::string_view phase) {
+    if (!report_) return;
+    std::lock_guard lock(mutex_);
+    report_({phase, -1.0, base_motion_s_, 0, 0});
+  }
+
+  // A planning phase over segments of these lengths (mm; 0 where not known); motion time counts on
+  // from what earlier phases planned.
+  void Plan(std::string_view phase, const std::vector<double>& lengths) {
+    if (!report_) return;
+    std::lock_guard lock(mutex_);
+    base_motion_s_ += PlannedMotion();
+    phase_ = phase;
+    total_mm_ = 0.0;
+    for (double l : lengths) total_mm_ += l;
+    lengths_ = lengths;
+    s_ = std::vector<std::atomic<double>>(lengths.size());
+    t_ = std::vector<std::atomic<double>>(lengths.size());
+    done_ = 0;
+    ReportLocked();
+  }
+
+  // interp::ProgramOptions::advance and ::progress for the phase Plan began.
+  std::function<void(int, double, double)> Advance() {
+    if (!report_) return {};
+    return [this](int segment, double s, double t) {
+      // One thread plans a segment; a back-off may take some of it back: show the furthest.
+      const auto k = static_cast<std::size_t>(segment);
+      if (s > s_[k].load(std::memory_order_relaxed)) s_[k].store(s, std::memory_order_relaxed);
+      if (t > t_[k].load(std::memory_order_relaxed)) t_[k].store(t, std::memory_order_relaxed);
+      std::unique_lock lock(mutex_, std::try_to_lock);
+      if (!lock) return;  // another thread is reporting: this news goes with the next report
+      const auto now = std::chrono::steady_clock::now();
+      if (now - last_ < std::chrono::milliseconds(50)) return;
+      last_ = now;
+      ReportLocked();
+    };
+  }
+  std::function<void(int, int)> Finished() {
+    if (!report_) return {};
+    return [this](int done, int) {
+      std::lock_guard lock(mutex_);
+      done_ = std::max(done_, done);
+      ReportLocked();
+    };
+  }
+
+ private:
+  double PlannedMotion() const {
+    double t = 0.0;
+    for (const auto& x : t_) t += x.load(std::memory_order_relaxed);
+    return t;
+  }
+  void ReportLocked() {
+    double s = 0.0;
+    for (std::size_t k = 0; k < s_.size(); ++k) {
+      s += std::min(lengths_[k], s_[k].load(std::memory_order_relaxed));
+    }
+    const int n = static_cast<int>(lengths_.size());
+    const double fraction = total_mm_ > 0.0 ? s / total_mm_
+                            : n > 0         ? static_cast<double>(done_) / n
+                                            : 0.0;
+    report_({phase_, std::clamp(fraction, 0.0, 1.0), base_motion_s_ + PlannedMotion(), done_, n});
+  }
+
+  std::function<void(const RunProgress&)> report_;
+  std::mutex mutex_;
+  std::string_view phase_;
+  std::vector<double> lengths_;
+  double total_mm_ = 0.0;
+  std::vector<std::atomic<double>> s_, t_;
+  int done_ = 0;
+  double base_motion_s_ = 0.0;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+// Each segment's path length (0 where it is not known), for ProgressMeter::Plan.
+std::vector<double> Lengths(const std::vector<interp::ProgramSegment>& segments) {
+  std::vector<double> lengths;
+  for (const auto& seg : segments) lengths.push_back(seg.path->Length().value_or(0.0));
+  return lengths;
+}
+
 std::string FaceName(const SurfaceSpec& spec) {
   return fmt::format("{} face {}", spec.step_file, spec.face);
 }
@@ -390,14 +485,16 @@ TopoDS_Face PlacedFace(const SurfaceSpec& spec) {
 
 }  // namespace
 
-SurfaceSetup SetUpSurface(const Job& job) {
+SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase) {
   const SurfaceSpec& spec = *job.surface;
   if (job.interpolator != InterpolatorKind::kVpop) {
     throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
   }
+  if (phase) phase("reading STEP");
   const TopoDS_Face placed = PlacedFace(spec);
   const geometry::FaceSurface face(placed, FaceName(spec));
   SurfaceSetup setup;
+  if (phase) phase("tracing passes");
   setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
   setup.safe_z_mm = std::async(std::launch::deferred, [placed, clearance = spec.clearance_mm] {
                       return geometry::FaceBox(placed).second.z() + clearance;
@@ -427,13 +524,12 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
   }
   // The passes first, in parallel; then the links, from where each pass really ended (its last
   // setpoint) to where the next one starts, so that no position jumps by even a rounding error.
-  const auto progress = [&options](int offset, int total) -> std::function<void(int, int)> {
-    if (!options.progress) return {};
-    return [&options, offset, total](int done, int) { options.progress(offset + done, total); };
-  };
+  ProgressMeter meter(options);
+  meter.Plan("planning passes", Lengths(pass_segments));
   interp::ProgramOptions po;
   po.threads = options.threads;
-  po.progress = progress(0, 2 * n - 1);
+  po.progress = meter.Finished();
+  po.advance = meter.Advance();
   std::vector<interp::PlannedSegment> planned_passes =
       interp::PlanSegments(pass_segments, machine, po);
   std::vector<std::unique_ptr<PathSource>> links;
@@ -461,7 +557,7 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
   }
   PassProgram out;
   out.links = static_cast<int>(links.size());
-  po.progress = progress(n, 2 * n - 1);
+  if (!link_segments.empty()) meter.Plan("planning links", Lengths(link_segments));
   std::vector<interp::PlannedSegment> planned_links =
       interp::PlanSegments(link_segments, machine, po);
   // Interleave: pass 1, its links, pass 2, ...
@@ -490,7 +586,9 @@ namespace {
 
 // Passes and the links between them, planned as one program.
 void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
-  const SurfaceSetup setup = SetUpSurface(job);
+  ProgressMeter meter(options);
+  const SurfaceSetup setup =
+      SetUpSurface(job, [&meter](std::string_view phase) { meter.Phase(phase); });
   std::vector<const PathSource*> passes;
   for (const auto& pass : setup.passes.passes) {
     passes.push_back(pass.get());
@@ -520,16 +618,21 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   if (job.interpolator != InterpolatorKind::kVpop) {
     throw Error("{}: G-code jobs run with the VPOp interpolator only", job.file);
   }
+  ProgressMeter meter(options);
+  meter.Phase("reading G-code");
   const GcodeProgram program = ReadGcode(job.path.gcode_file);
   r->blocks = static_cast<int>(program.moves.size());
+  meter.Phase("building contours");
   const GcodePlan plan = BuildGcodePlan(program, *r->machine, job.vpop, job.path.gcode);
   r->chains = plan.chains;
   r->rapids = plan.rapids;
   r->corners = plan.corners;
   r->path_length_mm = plan.length_mm;
+  meter.Plan("planning", Lengths(plan.segments));
   interp::ProgramOptions po;
   po.threads = options.threads;
-  po.progress = options.progress;
+  po.progress = meter.Finished();
+  po.advance = meter.Advance();
   interp::ProgramResult program_result;
   try {
     program_result = interp::PlanProgram(plan.segments, *r->machine, po);
@@ -549,10 +652,12 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
 RunResult RunJob(const Job& job, const RunOptions& options) {
   RunResult r;
   r.machine = kinematics::LoadMachineFile(job.machine_file);
+  ProgressMeter meter(options);
   if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
     const auto start = std::chrono::steady_clock::now();
     RunGcode(job, options, &r);
     r.compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    meter.Phase("verifying");
     r.verify = interp::Verify(r.table, *r.machine);
     return r;
   }
@@ -560,6 +665,7 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     RunSurface(job, options, &r);
     r.compute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    meter.Phase("verifying");
     r.verify = interp::Verify(r.table, *r.machine);
     return r;
   }
@@ -567,9 +673,17 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   r.path_length_mm = path->Length().value_or(0.0);
   TableSink sink(*r.machine, job.vpop.period_s);
   const auto start = std::chrono::steady_clock::now();
+  meter.Plan("planning", {r.path_length_mm});
   if (job.interpolator == InterpolatorKind::kVpop) {
     try {
-      r.vpop = interp::PlanVpop(*path, *r.machine, job.vpop, sink);
+      interp::VpopOptions o = job.vpop;
+      const auto advance = meter.Advance();
+      if (advance) o.progress = [advance](double s, double t) { advance(0, s, t); };
+      r.vpop = interp::PlanVpop(*path, *r.machine, o, sink);
+      if (advance) {
+        advance(0, r.vpop.end_s, r.vpop.motion_time_s);
+        meter.Finished()(1, 1);
+      }
     } catch (const Error& e) {
       throw Error("{}: {}", job.file, e.what());
     }
@@ -603,6 +717,7 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   r.table = sink.Table();
   r.arc_length = sink.ArcLength();
   r.limiters = sink.Limiters();
+  meter.Phase("verifying");
   r.verify = interp::Verify(r.table, *r.machine);
   return r;
 }
@@ -664,8 +779,16 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   return out;
 }
 
+bool FitToWrite(const Job& job, const RunResult& r) {
+  return r.verify.Passed() || job.interpolator != InterpolatorKind::kVpop;
+}
+
 void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setpoints_path,
-                     const std::string& limiters_path) {
+                     const std::string& limiters_path, bool keep_failed) {
+  if (!keep_failed && !FitToWrite(job, r)) {
+    throw Error("{}: the verifier fails these setpoints (worst ratio {:.9f}, {}): {} not written",
+                job.file, r.verify.worst_ratio, r.verify.worst, setpoints_path);
+  }
   if (!limiters_path.empty()) {
     AtomicFile out(limiters_path);
     out.Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));

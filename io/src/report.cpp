@@ -1,10 +1,12 @@
 #include "dtis/io/report.hpp"
 
+#include <fmt/chrono.h>
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -12,6 +14,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/file_text.hpp"
+#include "dtis/core/version.hpp"
 #include "dtis/io/setpoint_file.hpp"
 
 #ifndef DTIS_DATA_FROM_BIN
@@ -120,12 +123,14 @@ h1 { font-size: 1.3em; } h2 { font-size: 1.1em; margin-top: 1.5em; }
 table { border-collapse: collapse; font-size: 0.9em; }
 td, th { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
 th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
+#about td { text-align: left; } #about td:first-child { color: #555; }
 .fail { color: #b00; font-weight: bold; } .pass { color: #070; font-weight: bold; }
 .plot { width: 100%; }
 </style>
 <script>@PLOTLY@</script>
 </head><body data-report-status="loading" data-console-errors="0">
 <h1>dtis report: <span id="title"></span></h1>
+<table id="about"></table>
 <div id="compare-section" hidden>
 <h2>Comparison: the same passes from exports and on the exact surface</h2>
 <table id="compare"></table><ul id="compare-notes"></ul>
@@ -133,7 +138,7 @@ th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
 <h2 id="shown"></h2>
 </div>
 <table id="summary"></table>
-<h2>Tool path, coloured by feed</h2><div id="path" class="plot" data-figure="path" style="height:600px"></div>
+<h2 id="path-title">Tool path, coloured by feed</h2><div id="path" class="plot" data-figure="path" style="height:600px"></div>
 <h2>Feed against time, and the constraint that decided each period</h2>
 <div id="feed" class="plot" data-figure="feed" style="height:520px"></div>
 <h2>Axes against their limits</h2><div id="axes"></div>
@@ -152,6 +157,7 @@ function row(cells, head) {
 function summary() {
   const s = DATA.summary, t = document.getElementById('summary');
   document.getElementById('title').textContent = DATA.title;
+  for (const [k, v] of DATA.about) document.getElementById('about').appendChild(row([k, v]));
   const kv = [['motion time', s.motion_time_s.toFixed(6) + ' s'], ['setpoints', s.setpoints + ' at ' + (s.period_s * 1e3) + ' ms'],
               ['worst ratio', s.worst_ratio.toFixed(9) + ' (' + s.worst + ')'], ['verifier', s.passed ? 'PASS' : 'FAIL']];
   if (s.passes > 0) kv.push(['passes', String(s.passes)]);
@@ -169,16 +175,33 @@ function compareSection() {
   for (const r of c.rows) t.appendChild(row(r));
   for (const n of c.notes) { const li = document.createElement('li'); li.textContent = 'note: ' + n; document.getElementById('compare-notes').appendChild(li); }
   document.getElementById('shown').textContent = 'The run in full: ' + c.shown;
-  const traces = c.feeds.map(f => ({ type: 'scattergl', mode: 'lines', name: f.name, x: f.t, y: f.y }));
+  const traces = c.feeds.map(f => ({ type: 'scatter', mode: 'lines', name: f.name, x: f.t, y: f.y }));
   if (DATA.programmed_feed > 0) {
     const t1 = Math.max(...c.feeds.map(f => f.t[f.t.length - 1]));
-    traces.push({ type: 'scattergl', mode: 'lines', name: 'programmed feed', x: [0, t1], y: [DATA.programmed_feed, DATA.programmed_feed],
+    traces.push({ type: 'scatter', mode: 'lines', name: 'programmed feed', x: [0, t1], y: [DATA.programmed_feed, DATA.programmed_feed],
                   line: { color: '#d62728', dash: 'dash' } });
   }
-  return [Plotly.newPlot('compare-feed', traces, { margin: { t: 10 }, xaxis: { title: { text: 't (s)' } },
-    yaxis: { title: { text: 'feed (mm/min)' } }, legend: { orientation: 'h' } }, { responsive: true })];
+  return [Plotly.newPlot('compare-feed', traces, { margin: { t: 40 }, xaxis: { title: { text: 't (s)' } },
+    yaxis: { title: { text: 'feed (mm/min)' } }, legend: { orientation: 'h', x: 0, y: 1.02, yanchor: 'bottom' } },
+    { responsive: true })];
+}
+// The 3-D view needs WebGL; without it (a locked-down browser, a remote desktop) the path is drawn
+// from above in SVG, coloured by feed the same way.
+function hasWebGL() {
+  try { const c = document.createElement('canvas'); return !!(c.getContext('webgl') || c.getContext('experimental-webgl')); }
+  catch (e) { return false; }
+}
+function pathTopView() {
+  const p = DATA.path, every = Math.max(1, Math.ceil(p.x.length / 4000)), pick = a => a.filter((_, i) => i % every === 0);
+  document.getElementById('path-title').textContent = 'Tool path from above, coloured by feed (the 3-D view needs WebGL, which this browser does not offer)';
+  const trace = { type: 'scatter', mode: 'markers', name: 'tool tip', x: pick(p.x), y: pick(p.y),
+    marker: { size: 3, color: pick(p.feed), colorscale: 'Jet', cmin: 0, showscale: true, colorbar: { title: { text: 'mm/min' } } },
+    hovertemplate: 'x %{x:.3f}<br>y %{y:.3f}<br>feed %{marker.color:.0f} mm/min<extra></extra>' };
+  return Plotly.newPlot('path', [trace], { margin: { t: 10 }, showlegend: false, xaxis: { title: { text: 'x (mm)' } },
+    yaxis: { title: { text: 'y (mm)' }, scaleanchor: 'x' } }, { responsive: true });
 }
 function pathPlot() {
+  if (!hasWebGL()) return pathTopView();
   const p = DATA.path, traces = [];
   if (DATA.surface) { const f = DATA.surface; traces.push({ type: 'mesh3d', name: 'surface', x: f.x, y: f.y, z: f.z, i: f.i, j: f.j, k: f.k,
     color: '#b8c4d0', opacity: 0.55, flatshading: false, hoverinfo: 'skip', lighting: { ambient: 0.7, diffuse: 0.5, specular: 0.1 } }); }
@@ -188,15 +211,15 @@ function pathPlot() {
     hovertemplate: 'x %{x:.3f}<br>y %{y:.3f}<br>z %{z:.3f}<br>feed %{line.color:.0f} mm/min<extra></extra>' });
   if (p.axis) traces.push({ type: 'scatter3d', mode: 'lines', name: 'tool axis', x: p.axis.x, y: p.axis.y, z: p.axis.z,
                             line: { width: 2, color: '#555' }, hoverinfo: 'skip' });
-  return Plotly.newPlot('path', traces, { margin: { t: 10, l: 0, r: 0, b: 0 }, showlegend: false,
-    scene: { aspectmode: 'data', xaxis: { title: { text: 'x (mm)' } }, yaxis: { title: { text: 'y (mm)' } }, zaxis: { title: { text: 'z (mm)' } } } },
+  return Plotly.newPlot('path', traces, { margin: { t: 10, l: 10, r: 10, b: 10 }, showlegend: false,
+    scene: { aspectmode: 'data', camera: { eye: { x: 1.55, y: 1.55, z: 1.2 } }, xaxis: { title: { text: 'x (mm)' } }, yaxis: { title: { text: 'y (mm)' } }, zaxis: { title: { text: 'z (mm)' } } } },
     { responsive: true });
 }
 function feedPlot() {
-  const f = DATA.feed, traces = [{ type: 'scattergl', mode: 'lines', name: 'feed', x: f.t, y: f.y, line: { color: '#1f77b4' } }];
-  if (DATA.programmed_feed > 0) traces.push({ type: 'scattergl', mode: 'lines', name: 'programmed feed',
+  const f = DATA.feed, traces = [{ type: 'scatter', mode: 'lines', name: 'feed', x: f.t, y: f.y, line: { color: '#1f77b4' } }];
+  if (DATA.programmed_feed > 0) traces.push({ type: 'scatter', mode: 'lines', name: 'programmed feed',
     x: [f.t[0], f.t[f.t.length - 1]], y: [DATA.programmed_feed, DATA.programmed_feed], line: { color: '#d62728', dash: 'dash' } });
-  if (DATA.limiters.t.length) traces.push({ type: 'scattergl', mode: 'markers', name: 'deciding constraint',
+  if (DATA.limiters.t.length) traces.push({ type: 'scatter', mode: 'markers', name: 'deciding constraint',
     x: DATA.limiters.t, y: DATA.limiters.label, yaxis: 'y2', marker: { size: 4, color: '#555' } });
   return Plotly.newPlot('feed', traces, { margin: { t: 10 }, xaxis: { title: { text: 't (s)' }, anchor: DATA.limiters.t.length ? 'y2' : 'y' },
     yaxis: { title: { text: 'feed (mm/min)' }, domain: DATA.limiters.t.length ? [0.42, 1] : [0, 1] },
@@ -212,8 +235,8 @@ function axisPlot(a) {
   const t0 = DATA.feed.t[0], t1 = DATA.feed.t[DATA.feed.t.length - 1];
   for (let k = 0; k < 4; ++k) {
     const y = k ? 'y' + (k + 1) : 'y';
-    traces.push({ type: 'scattergl', mode: 'lines', name: names[k], x: series[k].t, y: series[k].y, yaxis: y, xaxis: 'x', line: { color: '#1f77b4' } });
-    if (limits[k] !== null) for (const sign of [1, -1]) traces.push({ type: 'scattergl', mode: 'lines', name: (sign > 0 ? '+' : '-') + 'limit',
+    traces.push({ type: 'scatter', mode: 'lines', name: names[k], x: series[k].t, y: series[k].y, yaxis: y, xaxis: 'x', line: { color: '#1f77b4' } });
+    if (limits[k] !== null) for (const sign of [1, -1]) traces.push({ type: 'scatter', mode: 'lines', name: (sign > 0 ? '+' : '-') + 'limit',
       x: [t0, t1], y: [sign * limits[k], sign * limits[k]], yaxis: y, line: { color: '#d62728', dash: 'dash', width: 1 } });
     layout['yaxis' + (k ? k + 1 : '')] = { title: { text: names[k] + ' (' + units[k] + ')' }, domain: [0.76 - 0.25 * k, 0.98 - 0.25 * k] };
   }
@@ -249,6 +272,10 @@ summary();
 Promise.all([...compareSection(), pathPlot(), feedPlot(), ...DATA.axes.map(axisPlot)]).then(async plots => {
   document.body.dataset.traces = plots.reduce((n, p) => n + p.data.length, 0);
   document.body.dataset.plots = plots.length;
+  // 2-D plots drawn in SVG with every trace there, for a browser's test with WebGL on or off.
+  document.body.dataset.drawn2d = plots.filter(p => p.querySelector('.cartesianlayer') &&
+    p.querySelectorAll('.scatterlayer .trace').length === p.data.length).length;
+  document.body.dataset.webgl = hasWebGL() ? 'yes' : 'no';
   if (wanted.has('figures')) {
     await figures(wanted.get('figures').split(','), +(wanted.get('width') || 1200));
     document.body.dataset.figures = 'done';
@@ -323,6 +350,12 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
 
   ordered_json data;
   data["title"] = in.title;
+  ordered_json about = ordered_json::array();
+  for (const auto& [key, value] : in.about) about.push_back({key, value});
+  about.push_back({"dtis", std::string(kVersion)});
+  about.push_back(
+      {"made", fmt::format("{:%Y-%m-%d %H:%M:%S %z}", fmt::localtime(std::time(nullptr)))});
+  data["about"] = std::move(about);
   data["programmed_feed"] = in.programmed_feed_mm_min;
   ordered_json summary = {{"motion_time_s", verify.motion_time_s},
                           {"setpoints", verify.rows},
@@ -456,6 +489,37 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
   ReplaceOnce(page, "@DATA@", ScriptSafe(data.dump()));
   ReplaceOnce(page, "@PLOTLY@", ScriptSafe(plotly_js));  // last: the library is large
   return page;
+}
+
+std::vector<ReportFact> JobFacts(const Job& job, const Machine& machine) {
+  std::vector<ReportFact> facts{
+      {"job", job.file}, {"machine", fmt::format("{} ({})", machine.Name(), job.machine_file)}};
+  const auto point = [](const Eigen::Vector3d& p) {
+    return fmt::format("({:.6g}, {:.6g}, {:.6g})", p.x(), p.y(), p.z());
+  };
+  if (job.surface) {
+    const SurfaceSpec& s = *job.surface;
+    facts.push_back({"part", s.step_file});
+    facts.push_back({"face", std::to_string(s.face)});
+    facts.push_back({"tool", s.tool.Describe()});
+    facts.push_back({"orientation", s.orientation.Describe()});
+    facts.push_back({"strategy", strategies::StrategySpec::KindName(s.strategy.kind)});
+  } else if (job.path.kind == PathSpec::Kind::kGcode) {
+    facts.push_back({"part", "G-code program " + job.path.gcode_file});
+  } else if (job.path.kind == PathSpec::Kind::kCurve) {
+    facts.push_back({"part", "curve " + job.path.curve_file});
+  } else {
+    facts.push_back(
+        {"part", fmt::format("line from {} to {} mm", point(job.path.from), point(job.path.to))});
+  }
+  facts.push_back(
+      {"interpolator", job.interpolator == InterpolatorKind::kVpop
+                           ? fmt::format("VPOp, {} planner", interp::PlannerName(job.vpop.planner))
+                       : job.interpolator == InterpolatorKind::kTaylor1 ? "Taylor order 1"
+                                                                        : "Taylor order 2"});
+  facts.push_back({"feed", fmt::format("{:.6g} mm/min, period {:.6g} ms", job.vpop.feed_mm_s * 60.0,
+                                       job.vpop.period_s * 1e3)});
+  return facts;
 }
 
 // Where plotly.js is: $DTIS_PLOTLY_JS; else next to an installed dtis (PREFIX/bin/dtis reads

@@ -34,6 +34,9 @@ struct ProgramOptions {
   int threads = 0;  // 0: oneTBB's default (all cores)
   // Called after each segment is planned, from any thread: (segments done, segments).
   std::function<void(int, int)> progress;
+  // Called while a segment is planned (VpopOptions::progress) and when it is done, from the thread
+  // planning it: (the segment's index, the arc length reached in mm, the motion time reached in s).
+  std::function<void(int, double, double)> advance;
 };
 
 // Throws dtis::Error naming the segment when one cannot be planned or does not start where the

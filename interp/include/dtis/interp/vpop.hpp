@@ -18,6 +18,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -78,6 +79,9 @@ struct VpopOptions {
   // the state and arc length asked (curves, G-code; a surface pass's warm-start cache makes its
   // last bits depend on the order of the solves). For tests and measurements.
   bool reuse_brake_runs = true;
+  // Called every 256 steps planned with the arc length (mm) and time (s) the plan has reached, for
+  // a progress display (a back-off may still take some of it back). From the planning thread.
+  std::function<void(double, double)> progress;
 
   bool IsValid(std::string* why) const;
 };

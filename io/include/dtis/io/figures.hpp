@@ -5,6 +5,7 @@
 // same library, not a second plotting code path.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,6 +18,8 @@ struct FigureOptions {
   // The browser: "" for $DTIS_CHROMIUM, else chromium (or chromium-browser, google-chrome) on PATH.
   std::string browser;
   double timeout_s = 300.0;  // wall clock for the browser
+  // Called about twice a second while the browser draws, with the seconds it has taken so far.
+  std::function<void(double)> waiting;
 };
 
 struct Figure {

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "dtis/core/machine.hpp"
 #include "dtis/core/path_source.hpp"
@@ -99,10 +100,22 @@ struct RunResult {
   double pass_motion_s = 0.0;  // time spent on the passes (links excluded)
 };
 
+// How far a run has come, for a progress display.
+struct RunProgress {
+  // "reading STEP", "tracing passes", "reading G-code", "building contours", "planning",
+  // "planning passes", "planning links", "verifying".
+  std::string_view phase;
+  // Of a planning phase: the share of its path length planned, 0 to 1; < 0 in the other phases.
+  double fraction = -1.0;
+  double motion_s = 0.0;  // motion time planned so far, the run's earlier phases included
+  int segments_done = 0, segments = 0;  // of a planning phase: passes, links or contours finished
+};
+
 struct RunOptions {
   int threads = 0;  // surface jobs plan passes in parallel; 0: all cores
-  // Called as segments (passes and links) finish: (done, total). From any thread.
-  std::function<void(int, int)> progress;
+  // Called at each phase's start and, while planning, up to 20 times a second (also within a
+  // segment) and as each segment finishes. From any thread, never two calls at once.
+  std::function<void(const RunProgress&)> progress;
 };
 
 // Loads the machine and the path, plans, and verifies the result with the independent verifier.
@@ -111,9 +124,15 @@ RunResult RunJob(const Job& job, const RunOptions& options = {});
 // The summary a run prints on stderr.
 std::string FormatRunSummary(const Job& job, const RunResult& result);
 
-// Writes the setpoints (and the limiter report if asked) atomically.
+// Whether a run's setpoints may be written: VPOp setpoints the verifier fails never reach a file a
+// machine could be fed from. The Taylor interpolators keep no limits (they are there to compare
+// with): theirs always may.
+bool FitToWrite(const Job& job, const RunResult& result);
+
+// Writes the setpoints (and the limiter report if asked) atomically. Throws dtis::Error, writing
+// nothing, when the run is not FitToWrite, unless `keep_failed` (to study a failure).
 void WriteRunOutputs(const Job& job, const RunResult& result, const std::string& setpoints_path,
-                     const std::string& limiters_path);
+                     const std::string& limiters_path, bool keep_failed = false);
 
 // A surface job's passes and how they are linked (for RunJob and the comparison of exports).
 struct SurfaceSetup {
@@ -127,7 +146,8 @@ struct SurfaceSetup {
   // The links' corners are smoothed as the G1 variants' rapids are ([compare] contour_tol_mm ...).
   geometry::CornerOptions link_corners;
 };
-SurfaceSetup SetUpSurface(const Job& job);
+// `phase`, if given, is called as the STEP file is read and as the passes are traced.
+SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase = {});
 // A surface job's face as triangles, placed as the job places it (for reports).
 geometry::FaceMesh MeshJobSurface(const Job& job);
 

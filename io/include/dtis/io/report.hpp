@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dtis/core/machine.hpp"
@@ -13,11 +14,18 @@
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/compare.hpp"
+#include "dtis/io/job.hpp"
 
 namespace dtis::io {
 
+// One row of a report's header: what the run is ("machine", "my_mill (mill.toml)").
+using ReportFact = std::pair<std::string, std::string>;
+
 struct ReportInput {
-  std::string title;                             // the job or file the run came from
+  std::string title;  // the job or file the run came from
+  // The header: machine, job, part, face, tool, strategy, ... The report adds the dtis version
+  // and the date it was made.
+  std::vector<ReportFact> about;
   const Machine* machine = nullptr;              // the axes and limits
   const interp::SetpointTable* table = nullptr;  // file units (mm, deg)
   // The run's own verification of `table`, when it has one; else the report verifies it.
@@ -40,6 +48,10 @@ inline constexpr std::size_t kReportPoints = 4000;
 // The indices of `values` to draw at most `points` of them: the first and last, and in each of
 // points / 2 equal buckets the rows of the smallest and the largest value, in order.
 std::vector<std::size_t> DecimateMinMax(const std::vector<double>& values, std::size_t points);
+
+// A job's header rows: the job file, the machine, what is machined (the STEP file and face, the
+// G-code program, the curve or the line), tool, orientation and strategy, planner, feed and period.
+std::vector<ReportFact> JobFacts(const Job& job, const Machine& machine);
 
 // The report as HTML, with `plotly_js` (the library's source) inlined.
 std::string RenderReport(const ReportInput& input, const std::string& plotly_js);
