@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -266,10 +267,39 @@ const std::string kStreamToHelp =
         "HAL's streamer.N") +
     (dtis::io::NativeHalBuilt() ? "" : " (hal:N not in this build: no linuxcnc-uspace-dev)");
 
-// Set by SIGINT/SIGTERM: the stream then ends with its stop to rest.
+// Set by SIGINT, SIGTERM or SIGHUP: a stream then ends with its stop to rest, a daemon shuts down
+// the same way.
 std::atomic<bool> g_interrupted{false};
-extern "C" void OnInterrupt(int) { g_interrupted = true; }
+std::atomic<int> g_signal{0};
+extern "C" void OnInterrupt(int sig) {
+  g_signal = sig;
+  g_interrupted = true;
+}
 
+// The stop signals are caught from the first line of main, so that one that comes while a
+// stream's job loads is kept, even where the parent shell ignores SIGINT (as for `cmd &`).
+// Commands that feed no machine get the signals' dispositions back after the command line is
+// read, and a signal caught until then takes effect as it would have.
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction stop {};
+    stop.sa_handler = OnInterrupt;
+    sigemptyset(&stop.sa_mask);
+    for (std::size_t k = 0; k < kSignals.size(); ++k) sigaction(kSignals[k], &stop, &old_[k]);
+  }
+  // For a stream or a daemon: keep catching them; a reader gone is a write error, reported.
+  static void Keep() { std::signal(SIGPIPE, SIG_IGN); }
+  // For every other command.
+  void Release() {
+    for (std::size_t k = 0; k < kSignals.size(); ++k) sigaction(kSignals[k], &old_[k], nullptr);
+    if (const int sig = g_signal.load(); sig != 0) std::raise(sig);
+  }
+
+ private:
+  static constexpr std::array<int, 3> kSignals{SIGINT, SIGTERM, SIGHUP};
+  std::array<struct sigaction, 3> old_{};
+};
 struct StreamArgs {
   std::string job, to = "-", record, report, pace = "auto", from, planner;
   long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
@@ -352,6 +382,7 @@ class StreamOutput {
 };
 
 int Stream(const StreamArgs& a) {
+  StopSignals::Keep();
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   ApplyPlanner(a.planner, &job);
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
@@ -373,9 +404,6 @@ int Stream(const StreamArgs& a) {
   o.keep_rows = !a.report.empty();
   dtis::io::Stream stream(*machine, o);
 
-  std::signal(SIGPIPE, SIG_IGN);  // a reader gone is a write error, reported
-  std::signal(SIGINT, OnInterrupt);
-  std::signal(SIGTERM, OnInterrupt);
   std::atomic<bool> finished{false};
   std::thread watcher([&] {
     while (!finished) {
@@ -445,7 +473,9 @@ std::string DefaultSocket() {
 }
 
 int Serve(const ServeArgs& a) {
+  StopSignals::Keep();
   dtis::io::ServeOptions o;
+  o.stop = &g_interrupted;
   o.socket_path = a.socket.empty() ? DefaultSocket() : a.socket;
   o.machine_file = a.machine;
   o.record_dir = a.record_dir;
@@ -457,10 +487,12 @@ int Serve(const ServeArgs& a) {
   if (!a.planner.empty()) o.planner = dtis::interp::PlannerFromName(a.planner);
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
   StreamOutput output(a.to, *machine, a.index, a.buffer);
-  std::signal(SIGPIPE, SIG_IGN);
-  std::fprintf(stderr, "dtis serve: listening on %s\n", o.socket_path.c_str());
+  o.listening = [&o] {
+    std::fprintf(stderr, "dtis serve: listening on %s\n", o.socket_path.c_str());
+  };
   dtis::io::Serve(o, output.Cnc());
   output.Close();
+  if (g_interrupted) std::fputs("dtis serve: stopped by a signal, the machine at rest\n", stderr);
   return 0;
 }
 
@@ -542,6 +574,7 @@ int Faces(const std::string& file) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  StopSignals stop_signals;
   CLI::App app{
       "dtis: axis setpoints at a fixed period, every axis within its velocity, acceleration and "
       "jerk limits (VPOp, Beudaert et al. 2012)."};
@@ -742,6 +775,7 @@ int main(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : kExitUsage;
   }
+  if (!*stream && !*serve) stop_signals.Release();
   try {
     if (*report) return Report(ra);
     if (*figures) return Figures(figures_report, figures_dir, fo, figures_quiet);
@@ -752,6 +786,7 @@ int main(int argc, char** argv) {
     if (*stream) return Stream(sa);
     if (*serve) return Serve(va);
     if (*send) {
+      std::signal(SIGPIPE, SIG_IGN);  // a daemon gone mid-request is an error message, not a death
       const std::string reply =
           dtis::io::SendRequest(send_socket.empty() ? DefaultSocket() : send_socket, request);
       std::puts(reply.c_str());

@@ -2,7 +2,9 @@
 # `dtis serve`: bad requests are answered with an error and change nothing; jobs run one
 # after the other, the next linked from where the previous left the machine, so that everything
 # the CNC received verifies as ONE sequence; an abort ends the job at rest and holds the queue
-# until "resume"; a pause holds at rest at the end of the current segment.
+# until "resume"; a pause holds at rest at the end of the current segment. A second daemon on a
+# live socket is refused; SIGTERM, SIGINT and SIGHUP mid-job end it at rest with its recording
+# complete, at three moments each; a stream whose parent ignores SIGINT still stops on it.
 set -euo pipefail
 dtis=$1
 root=$2
@@ -92,4 +94,92 @@ wait_for '"id":2,"job":"[^"]*","end":"(aborted|complete)"' 30
 "$dtis" verify "$out/b/job-2.csv" "$machine" | tail -3
 send '{"cmd":"shutdown"}' >/dev/null
 wait "${pids[1]}"
+
+# ---- one daemon per socket; nothing that is not a socket is ever removed
+start_daemon "$out/c.sock" --to /dev/null --pace realtime
+rc=0
+"$dtis" serve --socket "$out/c.sock" --machine "$machine" --to /dev/null 2>"$out/second.err" || rc=$?
+test "$rc" = 1 || { echo "a second daemon on a live socket exited $rc" >&2; exit 1; }
+grep -q "another dtis serve is listening there" "$out/second.err"
+send "{\"cmd\":\"submit\",\"job\":\"$jobs/lock.toml\"}" >/dev/null
+wait_for '"state":"streaming"'
+send '{"cmd":"abort"}' | grep -q '"aborted":true'  # the first daemon still answers
+send '{"cmd":"shutdown"}' >/dev/null
+wait "${pids[2]}"
+echo precious >"$out/file.sock"
+rc=0
+"$dtis" serve --socket "$out/file.sock" --machine "$machine" --to /dev/null 2>"$out/file.err" || rc=$?
+test "$rc" = 1 && grep -q "is not a socket; not removing it" "$out/file.err"
+test "$(cat "$out/file.sock")" = precious
+echo "serve: a live socket and an ordinary file at the path are refused and left alone"
+
+# ---- a signal mid-job: the job's stop to rest, its recording complete, the socket removed
+wait_rows() {  # until the current job has streamed at least N rows
+  local now
+  for _ in $(seq 400); do
+    now=$(send '{"cmd":"status"}' | grep -o '"current":{[^}]*"rows":[0-9]*' | grep -o '[0-9]*$' || true)
+    [ -n "$now" ] && [ "$now" -ge "$1" ] && return 0
+    sleep 0.02
+  done
+  echo "timed out waiting for $1 rows: $(send '{"cmd":"status"}')" >&2
+  return 1
+}
+at_rest() {  # csv: the last three rows hold the same position
+  test "$(tail -3 "$1" | cut -d, -f2- | sort -u | wc -l)" = 1
+}
+for sig in TERM INT HUP; do
+  for rows in 50 1500 4000; do
+    sock=$out/sig.sock
+    rm -rf "$out/sig"
+    "$dtis" serve --socket "$sock" --machine "$machine" --to /dev/null --pace realtime \
+      --record-dir "$out/sig" 2>"$out/sig.log" &
+    pid=$!
+    for _ in $(seq 100); do [ -S "$sock" ] && break; sleep 0.05; done
+    send "{\"cmd\":\"submit\",\"job\":\"$jobs/lock.toml\"}" >/dev/null
+    wait_rows "$rows"
+    kill -s "$sig" "$pid"
+    rc=0
+    wait "$pid" || rc=$?
+    problem=""
+    test "$rc" = 0 || problem="exit $rc"
+    test ! -e "$sock" || problem="$problem; socket left behind"
+    test -s "$out/sig/job-1.csv" || problem="$problem; no recording"
+    "$dtis" verify "$out/sig/job-1.csv" "$machine" >"$out/sig.verify" || problem="$problem; $(tail -1 "$out/sig.verify")"
+    at_rest "$out/sig/job-1.csv" || problem="$problem; not at rest: $(tail -1 "$out/sig/job-1.csv")"
+    n=$(($(wc -l <"$out/sig/job-1.csv") - 1))
+    [ "$n" -lt 7700 ] || problem="$problem; ran to the end ($n rows), the signal did not stop it"
+    if [ -n "$problem" ]; then
+      echo "FAIL serve SIG$sig after $rows rows: ${problem#; }" >&2
+      cat "$out/sig.log" >&2
+      exit 1
+    fi
+    echo "serve: SIG$sig after $rows rows: stopped at rest after $n rows, $(grep -o 'worst ratio [0-9.]*' "$out/sig.verify")"
+  done
+done
+
+# ---- a stream whose parent ignores SIGINT (a shell's background job) still stops on it, when it
+# comes while the job loads (the surface job traces its passes first) and mid-stream
+for delay in 0 0.6; do
+  (trap '' INT; exec "$dtis" stream "$jobs/surface_plane_cl_3axis.toml" --to /dev/null \
+    --pace realtime --record "$out/ignored.csv" -q) &
+  pid=$!
+  # Once dtis catches SIGINT (SigCgt bit 1): before its first line runs, while the dynamic loader
+  # works, the signal is still the shell's to ignore.
+  for _ in $(seq 400); do
+    cgt=$(sed -n 's/^SigCgt:\t//p' "/proc/$pid/status" 2>/dev/null || true)
+    [ -n "$cgt" ] && (((0x$cgt & 2) != 0)) && break
+    sleep 0.005
+  done
+  sleep "$delay"
+  kill -s INT "$pid"
+  rc=0
+  wait "$pid" || rc=$?
+  test "$rc" = 5 || { echo "stream after SIGINT at ${delay} s with SIGINT ignored: exit $rc, expected 5" >&2; exit 1; }
+  if [ "$(wc -l <"$out/ignored.csv")" -gt 2 ]; then  # else stopped before it moved: a header only
+    "$dtis" verify "$out/ignored.csv" "$machine" >/dev/null
+    at_rest "$out/ignored.csv"
+  fi
+  rm -f "$out/ignored.csv"
+done
+echo "serve: a stream whose parent ignores SIGINT stops at rest on it, also while loading"
 echo "serve: ok"

@@ -236,14 +236,46 @@ bool SameUser(int fd) {
   return cred.uid == getuid() || cred.uid == 0;
 }
 
+// Clears the way for a new socket at `path`: nothing there, or a socket no daemon answers on any
+// more (left by one that was killed), which is removed. A live daemon's socket and anything that
+// is not a socket are left alone: an error.
+void ClaimSocketPath(const std::string& path) {
+  struct stat st {};
+  if (lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return;
+    throw Error("{}: cannot check the socket path: {}", path, std::strerror(errno));
+  }
+  if (!S_ISSOCK(st.st_mode)) {
+    throw Error("{}: exists and is not a socket; not removing it (choose another --socket)", path);
+  }
+  const sockaddr_un addr = Address(path);
+  const int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (probe < 0) throw Error("socket: {}", std::strerror(errno));
+  const int connected = connect(probe, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+  const int why = errno;
+  ::close(probe);
+  if (connected == 0) {
+    throw Error(
+        "{}: another dtis serve is listening there (dtis send '{{\"cmd\":\"shutdown\"}}' "
+        "ends it)",
+        path);
+  }
+  if (why != ECONNREFUSED) {
+    throw Error("{}: cannot tell whether a daemon listens there: {}", path, std::strerror(why));
+  }
+  if (::unlink(path.c_str()) != 0 && errno != ENOENT) {
+    throw Error("{}: cannot remove the stale socket: {}", path, std::strerror(errno));
+  }
+}
+
 }  // namespace
 
 void Serve(const ServeOptions& options, CncOutput& out) {
   Daemon daemon(options, out);
   const sockaddr_un addr = Address(options.socket_path);
+  ClaimSocketPath(options.socket_path);
   const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (listener < 0) throw Error("socket: {}", std::strerror(errno));
-  ::unlink(options.socket_path.c_str());
   const mode_t old_mask = umask(0077);  // the socket file is the owner's only
   const int bound = bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
   umask(old_mask);
@@ -252,6 +284,7 @@ void Serve(const ServeOptions& options, CncOutput& out) {
     ::close(listener);
     throw Error("{}: cannot listen: {}", options.socket_path, why);
   }
+  if (options.listening) options.listening();
   std::thread runner([&] { daemon.RunJobs(); });
 
   struct Client {
@@ -260,9 +293,13 @@ void Serve(const ServeOptions& options, CncOutput& out) {
   };
   std::vector<Client> clients;
   while (!daemon.Quit()) {
+    if (options.stop && *options.stop) {
+      daemon.Respond(R"({"cmd":"shutdown"})");
+      break;
+    }
     std::vector<pollfd> fds{{listener, POLLIN, 0}};
     for (const auto& c : clients) fds.push_back({c.fd, POLLIN, 0});
-    if (poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR) break;
+    if (poll(fds.data(), fds.size(), 20) < 0 && errno != EINTR) break;
     if (fds[0].revents & POLLIN) {
       const int fd = accept4(listener, nullptr, nullptr, SOCK_CLOEXEC);
       if (fd >= 0 && SameUser(fd)) {

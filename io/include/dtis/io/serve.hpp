@@ -13,6 +13,8 @@
 // {"ok":false,"error":"..."} and changes nothing.
 #pragma once
 
+#include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -29,10 +31,16 @@ struct ServeOptions {
   std::optional<AxisVector> from;
   // When set: every job is planned with this planner, whatever its [interpolator] planner says.
   std::optional<interp::PlannerKind> planner;
+  // When set and true (a signal handler sets it): shut down as "shutdown" does, within 20 ms.
+  const std::atomic<bool>* stop = nullptr;
+  // Called once the socket listens.
+  std::function<void()> listening;
 };
 
-// Runs until a "shutdown" request; writes every job's setpoints to `out`. Throws dtis::Error if the
-// socket cannot be set up.
+// Runs until a "shutdown" request (or `stop`); writes every job's setpoints to `out`. The current
+// job ends with its stop to rest and its recording is written; the socket file is removed. Throws
+// dtis::Error if the socket cannot be set up: a daemon already answers on the path, or something
+// that is not a socket is there (never removed).
 void Serve(const ServeOptions& options, CncOutput& out);
 
 // Sends one request line and returns the reply line (for `dtis send` and tests).
