@@ -20,6 +20,7 @@
 #include <tuple>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 #include "dtis/geometry/face_surface.hpp"
 
 namespace dtis::geometry {
@@ -28,6 +29,7 @@ namespace {
 // OpenCASCADE's STEP reader crashes on some STEP-NC (ISO 14649) files, whose schemas hold no part
 // geometry it knows: check the header first, and name the schema in the error.
 void CheckHeader(const std::string& path) {
+  RequireRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error("{}: cannot open the file", path);
   std::string head(65536, '\0');

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 
 namespace dtis::io {
 namespace {
@@ -280,7 +281,7 @@ class GcodeReader::Blocks {
 
 GcodeReader::GcodeReader(const std::string& path)
     : blocks_(std::make_unique<Blocks>(path)),
-      in_(std::make_unique<std::ifstream>(path, std::ios::binary)) {
+      in_((RequireRegularFile(path), std::make_unique<std::ifstream>(path, std::ios::binary))) {
   if (!*in_) throw Error("{}: cannot open the G-code file", path);
 }
 

@@ -113,7 +113,10 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   TomlTable surface = root.Table("surface");
   spec.step_file = ResolveRelative(file, surface.String("file"));
   const std::int64_t face = surface.OptionalInteger("face").value_or(1);
-  if (face < 1) surface.Fail("face", fmt::format("expected a face index >= 1, got {}", face));
+  if (face < 1 || face > std::numeric_limits<int>::max()) {
+    surface.Fail("face", fmt::format("expected a face index from 1 to {}, got {}",
+                                     std::numeric_limits<int>::max(), face));
+  }
   spec.face = static_cast<int>(face);
   if (auto r = surface.OptionalPoint("rotate_deg")) spec.rotate_deg = *r;
   if (auto t = surface.OptionalPoint("translate_mm")) spec.translate_mm = *t;
@@ -211,7 +214,10 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
     s.range = std::array<double, 2>{r[0], r[1]};
   }
   if (auto m = st.OptionalInteger("max_passes")) {
-    if (*m < 1) st.Fail("max_passes", fmt::format("expected at least 1, got {}", *m));
+    if (*m < 1 || *m > std::numeric_limits<int>::max()) {
+      st.Fail("max_passes",
+              fmt::format("expected 1 to {}, got {}", std::numeric_limits<int>::max(), *m));
+    }
     s.max_passes = static_cast<int>(*m);
   }
   if (auto t = st.OptionalPositiveNumber("newton_tol_mm")) s.newton.tolerance_mm = *t;
@@ -240,6 +246,10 @@ Job ReadJob(TomlTable& root) {
   job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
   const double period_ms = root.OptionalPositiveNumber("period_ms").value_or(1.0);
+  if (period_ms < kMinPeriodMs || period_ms > kMaxPeriodMs) {
+    root.Fail("period_ms", fmt::format("expected a period from {} to {} ms, got {}", kMinPeriodMs,
+                                       kMaxPeriodMs, period_ms));
+  }
   job.vpop.period_s = period_ms * 1e-3;
   const std::optional<double> feed = root.OptionalPositiveNumber("feed_mm_min");
   if (root.Has("surface")) {
@@ -596,6 +606,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   }
   r->passes = static_cast<int>(passes.size());
   r->stepover_mm = setup.passes.stepover_mm;
+  CheckMotionBound(job, r->path_length_mm);
   const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
   r->links = pp.links;
   TableSink sink(*r->machine, job.vpop.period_s);
@@ -628,6 +639,7 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   r->rapids = plan.rapids;
   r->corners = plan.corners;
   r->path_length_mm = plan.length_mm;
+  CheckMotionBound(job, plan.length_mm);
   meter.Plan("planning", Lengths(plan.segments));
   interp::ProgramOptions po;
   po.threads = options.threads;
@@ -671,6 +683,7 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   }
   const auto path = BuildPath(job);
   r.path_length_mm = path->Length().value_or(0.0);
+  CheckMotionBound(job, r.path_length_mm);
   TableSink sink(*r.machine, job.vpop.period_s);
   const auto start = std::chrono::steady_clock::now();
   meter.Plan("planning", {r.path_length_mm});
@@ -781,6 +794,29 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
 
 bool FitToWrite(const Job& job, const RunResult& r) {
   return r.verify.Passed() || job.interpolator != InterpolatorKind::kVpop;
+}
+
+void CheckMotionBound(const Job& job, double length_mm) {
+  const double limit_s = kMaxMotionHours * 3600.0;
+  const auto refuse = [&](double least_s, const std::string& key, double value) {
+    throw Error(
+        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {} = {:g}, more than the {:g} h a "
+        "job "
+        "may take: check {}",
+        job.file, length_mm, least_s / 3600.0, key, value, kMaxMotionHours, key);
+  };
+  if (!(length_mm > 0.0)) return;
+  const bool gcode = !job.surface && job.path.kind == PathSpec::Kind::kGcode;
+  if (!gcode && length_mm / job.vpop.feed_mm_s > limit_s) {
+    refuse(length_mm / job.vpop.feed_mm_s, "feed_mm_min", job.vpop.feed_mm_s * 60.0);
+  }
+  const double a = job.vpop.tangential_acceleration_mm_s2, j = job.vpop.tangential_jerk_mm_s3;
+  if (std::isfinite(a) && 2.0 * std::sqrt(length_mm / a) > limit_s) {
+    refuse(2.0 * std::sqrt(length_mm / a), "[tangential] acceleration_mm_s2", a);
+  }
+  if (std::isfinite(j) && std::cbrt(32.0 * length_mm / j) > limit_s) {
+    refuse(std::cbrt(32.0 * length_mm / j), "[tangential] jerk_mm_s3", j);
+  }
 }
 
 void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setpoints_path,

@@ -178,7 +178,11 @@ class SurfaceSegments final : public SegmentSource {
   SurfaceSegments(const Job& job, const Machine& machine, std::optional<AxisVector> from)
       : setup_(SetUpSurface(job)),
         linker_(machine, setup_.link_options, setup_.clearance_mm, setup_.link_corners),
-        from_(std::move(from)) {}
+        from_(std::move(from)) {
+    double length_mm = 0.0;
+    for (const auto& pass : setup_.passes.passes) length_mm += pass->Length().value_or(0.0);
+    CheckMotionBound(job, length_mm);
+  }
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     const auto& passes = setup_.passes.passes;
@@ -223,8 +227,10 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
   if (job.path.kind == PathSpec::Kind::kGcode) {
     next = [producer = std::make_shared<GcodeProducer>(job, machine)] { return (*producer)(); };
   } else {
-    next = [segment = std::optional<StreamSegment>(StreamSegment{
-                std::shared_ptr<const PathSource>(BuildPath(job)), job.vpop, "path"})]() mutable {
+    std::shared_ptr<const PathSource> path = BuildPath(job);
+    CheckMotionBound(job, path->Length().value_or(0.0));
+    next = [segment = std::optional<StreamSegment>(
+                StreamSegment{std::move(path), job.vpop, "path"})]() mutable {
       std::optional<StreamSegment> s;
       s.swap(segment);
       return s;

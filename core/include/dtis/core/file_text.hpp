@@ -2,12 +2,23 @@
 // and the report that embeds plotly.js. Each caller says in its own error what it expected.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 
 namespace dtis {
 
-// The file's bytes, or nothing when it cannot be opened.
+// Input files are regular files: a directory, a device (/dev/zero), a FIFO or a socket given as
+// one is an error naming it, never read (a device may never end, a FIFO may block forever).
+// Throws dtis::Error; a path that does not exist passes (the reader says it cannot open it).
+void RequireRegularFile(const std::string& path);
+
+// Text inputs are read whole: larger than this (about 18 hours of 5-axis setpoints at 1 ms) they
+// are refused.
+inline constexpr std::uintmax_t kMaxTextFileBytes = std::uintmax_t{4} << 30;
+
+// The file's bytes, or nothing when it cannot be opened. Throws dtis::Error when it is not a
+// regular file or larger than kMaxTextFileBytes.
 std::optional<std::string> ReadFileText(const std::string& path);
 
 }  // namespace dtis

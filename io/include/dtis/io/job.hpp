@@ -76,6 +76,12 @@ struct Job {
   std::string limiters_out;
 };
 
+// Bounds every job is held to, so that a mistyped number is an error naming its key, never a run
+// that does not end: the period, and the least motion time the path can take at the job's feed and
+// tangential limits.
+inline constexpr double kMinPeriodMs = 0.01, kMaxPeriodMs = 100.0;
+inline constexpr double kMaxMotionHours = 24.0;
+
 // Throws dtis::Error naming the file, line and key.
 Job LoadJob(const std::string& path);
 Job ParseJob(std::string_view text, const std::string& source_name);
@@ -117,6 +123,12 @@ struct RunOptions {
   // segment) and as each segment finishes. From any thread, never two calls at once.
   std::function<void(const RunProgress&)> progress;
 };
+
+// Throws dtis::Error, naming the job and the key to look at, when a path of `length_mm` cannot be
+// followed in less than kMaxMotionHours at the job's feed (not for G-code: its F words rule) or
+// within its tangential acceleration and jerk (a rest-to-rest move of that length needs at least
+// 2 sqrt(L / A) and (32 L / J)^(1/3)).
+void CheckMotionBound(const Job& job, double length_mm);
 
 // Loads the machine and the path, plans, and verifies the result with the independent verifier.
 RunResult RunJob(const Job& job, const RunOptions& options = {});
