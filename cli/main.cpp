@@ -181,10 +181,8 @@ int Run(const RunArgs& a) {
   if (failed && !a.keep_failed) {
     progress.Clear();
     if (!a.quiet) std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
-    std::fprintf(stderr,
-                 "dtis: %s: the verifier fails these setpoints (worst ratio %.9f, %s): nothing "
-                 "written; --keep-failed writes them anyway\n",
-                 job.file.c_str(), result.verify.worst_ratio, result.verify.worst.c_str());
+    std::fprintf(stderr, "dtis: %s: nothing written; --keep-failed writes them anyway\n",
+                 dtis::io::UnfitMessage(job, result).c_str());
     return kExitVerifyFailed;
   }
   progress.Phase("writing");

@@ -397,8 +397,6 @@ class ProgressMeter {
  public:
   explicit ProgressMeter(const RunOptions& options) : report_(options.progress) {}
 
-  explicit operator bool() const { return static_cast<bool>(report_); }
-
   // A phase measured by nothing but its name.
   void Phase(std::string_view phase) {
     if (!report_) return;
@@ -736,11 +734,9 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
 }
 
 std::string FormatRunSummary(const Job& job, const RunResult& r) {
-  std::string out = fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name,
-                                job.interpolator == InterpolatorKind::kVpop      ? "VPOp"
-                                : job.interpolator == InterpolatorKind::kTaylor1 ? "Taylor order 1"
-                                                                                 : "Taylor order 2",
-                                r.machine->Name(), r.path_length_mm);
+  std::string out =
+      fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name,
+                  InterpolatorName(job.interpolator), r.machine->Name(), r.path_length_mm);
   if (job.surface) {
     out += fmt::format("surface          {} face {}, {}, {}, {}\n", job.surface->step_file,
                        job.surface->face, job.surface->tool.Describe(),
@@ -792,38 +788,59 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   return out;
 }
 
+const char* InterpolatorName(InterpolatorKind kind) {
+  switch (kind) {
+    case InterpolatorKind::kVpop:
+      return "VPOp";
+    case InterpolatorKind::kTaylor1:
+      return "Taylor order 1";
+    case InterpolatorKind::kTaylor2:
+      return "Taylor order 2";
+  }
+  return "?";
+}
+
 bool FitToWrite(const Job& job, const RunResult& r) {
   return r.verify.Passed() || job.interpolator != InterpolatorKind::kVpop;
 }
 
+std::string UnfitMessage(const Job& job, const RunResult& r) {
+  return fmt::format("{}: the verifier fails these setpoints (worst ratio {:.9f}, {})", job.file,
+                     r.verify.worst_ratio, r.verify.worst);
+}
+
 void CheckMotionBound(const Job& job, double length_mm) {
-  const double limit_s = kMaxMotionHours * 3600.0;
-  const auto refuse = [&](double least_s, const std::string& key, double value) {
-    throw Error(
-        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {} = {:g}, more than the {:g} h a "
-        "job "
-        "may take: check {}",
-        job.file, length_mm, least_s / 3600.0, key, value, kMaxMotionHours, key);
-  };
   if (!(length_mm > 0.0)) return;
-  const bool gcode = !job.surface && job.path.kind == PathSpec::Kind::kGcode;
-  if (!gcode && length_mm / job.vpop.feed_mm_s > limit_s) {
-    refuse(length_mm / job.vpop.feed_mm_s, "feed_mm_min", job.vpop.feed_mm_s * 60.0);
+  struct Bound {
+    double least_s;  // the least motion time this key allows
+    const char* key;
+    double value;
+  };
+  std::vector<Bound> bounds;
+  // A G-code program's F words rule its feed, not feed_mm_min.
+  if (job.surface || job.path.kind != PathSpec::Kind::kGcode) {
+    bounds.push_back({length_mm / job.vpop.feed_mm_s, "feed_mm_min", job.vpop.feed_mm_s * 60.0});
   }
   const double a = job.vpop.tangential_acceleration_mm_s2, j = job.vpop.tangential_jerk_mm_s3;
-  if (std::isfinite(a) && 2.0 * std::sqrt(length_mm / a) > limit_s) {
-    refuse(2.0 * std::sqrt(length_mm / a), "[tangential] acceleration_mm_s2", a);
+  if (std::isfinite(a)) {
+    bounds.push_back({2.0 * std::sqrt(length_mm / a), "[tangential] acceleration_mm_s2", a});
   }
-  if (std::isfinite(j) && std::cbrt(32.0 * length_mm / j) > limit_s) {
-    refuse(std::cbrt(32.0 * length_mm / j), "[tangential] jerk_mm_s3", j);
+  if (std::isfinite(j)) {
+    bounds.push_back({std::cbrt(32.0 * length_mm / j), "[tangential] jerk_mm_s3", j});
+  }
+  for (const Bound& b : bounds) {
+    if (b.least_s <= kMaxMotionHours * 3600.0) continue;
+    throw Error(
+        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {} = {:g}, more than the {:g} h "
+        "a job may take: check {}",
+        job.file, length_mm, b.least_s / 3600.0, b.key, b.value, kMaxMotionHours, b.key);
   }
 }
 
 void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setpoints_path,
                      const std::string& limiters_path, bool keep_failed) {
   if (!keep_failed && !FitToWrite(job, r)) {
-    throw Error("{}: the verifier fails these setpoints (worst ratio {:.9f}, {}): {} not written",
-                job.file, r.verify.worst_ratio, r.verify.worst, setpoints_path);
+    throw Error("{}: {} not written", UnfitMessage(job, r), setpoints_path);
   }
   if (!limiters_path.empty()) {
     AtomicFile out(limiters_path);

@@ -512,11 +512,11 @@ std::vector<ReportFact> JobFacts(const Job& job, const Machine& machine) {
     facts.push_back(
         {"part", fmt::format("line from {} to {} mm", point(job.path.from), point(job.path.to))});
   }
-  facts.push_back(
-      {"interpolator", job.interpolator == InterpolatorKind::kVpop
-                           ? fmt::format("VPOp, {} planner", interp::PlannerName(job.vpop.planner))
-                       : job.interpolator == InterpolatorKind::kTaylor1 ? "Taylor order 1"
-                                                                        : "Taylor order 2"});
+  std::string interpolator = InterpolatorName(job.interpolator);
+  if (job.interpolator == InterpolatorKind::kVpop) {
+    interpolator += fmt::format(", {} planner", interp::PlannerName(job.vpop.planner));
+  }
+  facts.push_back({"interpolator", std::move(interpolator)});
   facts.push_back({"feed", fmt::format("{:.6g} mm/min, period {:.6g} ms", job.vpop.feed_mm_s * 60.0,
                                        job.vpop.period_s * 1e3)});
   return facts;

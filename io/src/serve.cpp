@@ -87,9 +87,7 @@ class Daemon {
         if (stream_) stream_->Abort();
         reply = {{"ok", true}, {"aborted", stream_ != nullptr}};
       } else if (cmd == "shutdown") {
-        quit_ = true;
-        if (stream_) stream_->Abort();
-        wake_.notify_all();
+        ShutdownLocked();
         reply = {{"ok", true}};
       } else {
         throw Error("unknown command '{}' (submit, status, pause, resume, abort, shutdown)", cmd);
@@ -168,7 +166,19 @@ class Daemon {
     return quit_;
   }
 
+  // "shutdown": the current job's stop to rest, then the runner returns.
+  void Shutdown() {
+    std::lock_guard lock(mutex_);
+    ShutdownLocked();
+  }
+
  private:
+  void ShutdownLocked() {
+    quit_ = true;
+    if (stream_) stream_->Abort();
+    wake_.notify_all();
+  }
+
   json Status() const {
     json s = {{"ok", true}};
     s["state"] = stream_ ? (stream_->Paused() ? "pausing" : "streaming") : held_ ? "held" : "idle";
@@ -294,7 +304,7 @@ void Serve(const ServeOptions& options, CncOutput& out) {
   std::vector<Client> clients;
   while (!daemon.Quit()) {
     if (options.stop && *options.stop) {
-      daemon.Respond(R"({"cmd":"shutdown"})");
+      daemon.Shutdown();
       break;
     }
     std::vector<pollfd> fds{{listener, POLLIN, 0}};

@@ -136,10 +136,15 @@ RunResult RunJob(const Job& job, const RunOptions& options = {});
 // The summary a run prints on stderr.
 std::string FormatRunSummary(const Job& job, const RunResult& result);
 
+// "VPOp", "Taylor order 1", "Taylor order 2".
+const char* InterpolatorName(InterpolatorKind kind);
+
 // Whether a run's setpoints may be written: VPOp setpoints the verifier fails never reach a file a
 // machine could be fed from. The Taylor interpolators keep no limits (they are there to compare
 // with): theirs always may.
 bool FitToWrite(const Job& job, const RunResult& result);
+// Why a run is not FitToWrite: "JOB: the verifier fails these setpoints (worst ratio R, WHERE)".
+std::string UnfitMessage(const Job& job, const RunResult& result);
 
 // Writes the setpoints (and the limiter report if asked) atomically. Throws dtis::Error, writing
 // nothing, when the run is not FitToWrite, unless `keep_failed` (to study a failure).
