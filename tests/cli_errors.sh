@@ -4,6 +4,7 @@
 set -uo pipefail
 dtis=$1
 root=$2
+rs274=${3:-}  # "rs274": dtis was built with LinuxCNC's interpreter, the default G-code reader
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 failures=0
@@ -103,21 +104,31 @@ expect degenerate "the surface normal is undefined" -- "$dtis" run "$work/nose.t
 sed "s/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [500, 510]/" "$work/surf.toml" > "$work/miss.toml"
 expect misses "misses the face" -- "$dtis" run "$work/miss.toml" -o "$work/out.csv"
 
-# G-code jobs: a bad block names the program's line and column; nothing is written.
-cat > "$work/gcode.toml" <<JOB
+# G-code jobs: a bad block names the program's line (and, for dtis' own reader, its column);
+# nothing is written. LinuxCNC's interpreter gives its own messages.
+cat > "$work/gcode_dtis.toml" <<JOB
 machine = "mikron_ucp710_xyz.toml"
 [path]
 kind = "gcode"
 file = "bad.ngc"
+interpreter = "dtis"
 JOB
-printf 'G0 X0 Y0\nG1 X10 F600\nG2 X20 Y0\n' > "$work/bad.ngc"
-expect gcode-arc "bad.ngc:3:1: an arc (G2/G3) needs I and/or J, or R" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F600 Q3\n' > "$work/bad.ngc"
-expect gcode-word "bad.ngc:2:13: word 'Q' is not supported" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F0\n' > "$work/bad.ngc"
-expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F600 A5\n' > "$work/bad.ngc"
-expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+sed '/^interpreter/d' "$work/gcode_dtis.toml" > "$work/gcode.toml"
+printf 'G0 X0 Y0\nG1 X10 F600\nG2 X20 Y0\nM2\n' > "$work/bad.ngc"
+expect gcode-arc "bad.ngc:3:1: an arc (G2/G3) needs I and/or J, or R" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+[ "$rs274" = rs274 ] && expect gcode-arc-rs274 "bad.ngc:3: R i j k words all missing for arc" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F600 Q3\nM2\n' > "$work/bad.ngc"
+expect gcode-word "bad.ngc:2:13: word 'Q' is not supported" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+[ "$rs274" = rs274 ] && expect gcode-word-rs274 "bad.ngc:2: Q word with no G5, G10, G64" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F0\nM2\n' > "$work/bad.ngc"
+expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+[ "$rs274" = rs274 ] && expect gcode-feed-rs274 "bad.ngc:2: Cannot do g1 with zero feed rate" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\nG1 X10 F600 A5\nM2\n' > "$work/bad.ngc"
+expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+[ "$rs274" = rs274 ] && expect gcode-rotary-rs274 "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+# As LinuxCNC, its interpreter wants a program's end (M2, M30 or a closing %).
+printf 'G0 X0 Y0\nG1 X10 F600\n' > "$work/bad.ngc"
+[ "$rs274" = rs274 ] && expect gcode-end-rs274 "bad.ngc:2: File ended with no percent sign or program end" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
 
 # --planner: one of the two, and only for the VPOp interpolator.
 expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"

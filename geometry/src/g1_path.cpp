@@ -157,26 +157,44 @@ double DeviationFromCorner(const BSplineCurve& curve, const Vector3d& a, const V
   return worst;
 }
 
-// The signed angle an arc sweeps from radius r0 to radius r1 (XY), in (0, 2 pi] counterclockwise
-// and [-2 pi, 0) clockwise: equal radii make a full circle.
-double ArcSweep(const Vector3d& r0, const Vector3d& r1, bool clockwise) {
-  double sweep = std::atan2(r0.x() * r1.y() - r0.y() * r1.x(), r0.x() * r1.x() + r0.y() * r1.y());
-  if (clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
-  if (!clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
-  return sweep;
+// The length of a vector, as std::hypot of its components: exactly the planar hypot for a vector
+// in the XY plane.
+double Norm(const Vector3d& v) { return std::hypot(std::hypot(v.x(), v.y()), v.z()); }
+
+// The component of v across the unit axis n (exactly v's x and y for n = +Z).
+Vector3d Across(const Vector3d& v, const Vector3d& n) {
+  if (n == Vector3d::UnitZ()) return Vector3d(v.x(), v.y(), 0.0);
+  return v - v.dot(n) * n;
+}
+
+// The signed angle an arc about the axis n sweeps from radius r0 to radius r1, counterclockwise
+// about n positive: in (0, 2 pi] counterclockwise and [-2 pi, 0) clockwise (equal radii make a
+// full circle), and a whole turn more for each turn begun after the first.
+double ArcSweep(const Vector3d& r0, const Vector3d& r1, const ChainMove& m) {
+  double sweep = 0.0;
+  if (m.normal == Vector3d::UnitZ()) {
+    sweep = std::atan2(r0.x() * r1.y() - r0.y() * r1.x(), r0.x() * r1.x() + r0.y() * r1.y());
+  } else {
+    const Vector3d a = Across(r0, m.normal), b = Across(r1, m.normal);
+    sweep = std::atan2(m.normal.dot(a.cross(b)), a.dot(b));
+  }
+  if (m.clockwise && sweep >= 0.0) sweep -= 2.0 * std::numbers::pi;
+  if (!m.clockwise && sweep <= 0.0) sweep += 2.0 * std::numbers::pi;
+  const double extra = 2.0 * std::numbers::pi * std::max(m.turns - 1, 0);
+  return sweep + (m.clockwise ? -extra : extra);
 }
 
 }  // namespace
 
 Vector3d StartTangent(const Vector3d& from, const ChainMove& move) {
   if (move.kind == ChainMove::Kind::kLine) return (move.tip - from).normalized();
-  const Vector3d r = from - move.center;
-  Vector3d t(-r.y(), r.x(), 0.0);
+  const Vector3d r = Across(from - move.center, move.normal);
+  Vector3d t = move.normal.cross(r);
   if (move.clockwise) t = -t;
-  // The helix rises along z over the sweep; its tangent leans by the rise per unit of arc.
-  const double sweep = ArcSweep(r, move.tip - move.center, move.clockwise);
-  t = t.normalized() * std::hypot(r.x(), r.y()) * std::abs(sweep);
-  t.z() = move.tip.z() - from.z();
+  // The helix rises along its axis over the sweep; its tangent leans by the rise per unit of arc.
+  const double sweep = ArcSweep(from - move.center, move.tip - move.center, move);
+  t = t.normalized() * Norm(r) * std::abs(sweep);
+  t += move.normal * move.normal.dot(move.tip - from);
   return t.normalized();
 }
 
@@ -498,11 +516,13 @@ bool G1Path::AdvanceRead() const {
     a.s0 = length_;
     const Vector3d r0 = v0.p - m.center;
     const Vector3d r1 = v1.p - m.center;
-    a.a = Vector3d(m.center.x(), m.center.y(), v0.p.z());
-    a.radius = std::hypot(r0.x(), r0.y());
-    a.sweep = ArcSweep(r0, r1, m.clockwise);
-    a.d = Vector3d(r0.x(), r0.y(), 0.0);
-    a.dz = v1.p.z() - v0.p.z();
+    a.n = m.normal;
+    a.d = Across(r0, m.normal);
+    a.a = v0.p - a.d;  // the axis at the start's height
+    if (m.normal == Vector3d::UnitZ()) a.a = Vector3d(m.center.x(), m.center.y(), v0.p.z());
+    a.radius = Norm(a.d);
+    a.sweep = ArcSweep(r0, r1, m);
+    a.dz = m.normal.dot(v1.p - v0.p);
     a.length = std::hypot(a.radius * a.sweep, a.dz);
     if (!(a.radius > 1e-9)) throw Error("line {}: the arc has no radius", m.line);
     pieces_.push_back(a);
@@ -783,8 +803,12 @@ Pose G1Path::PoseAt(double s, int* hint) const {
     case Piece::Kind::kArc: {
       const double angle = p.sweep * local / p.length;
       const double c = std::cos(angle), sn = std::sin(angle);
-      pose.tip = p.a + Vector3d(c * p.d.x() - sn * p.d.y(), sn * p.d.x() + c * p.d.y(),
-                                p.dz * local / p.length);
+      if (p.n == Vector3d::UnitZ()) {
+        pose.tip = p.a + Vector3d(c * p.d.x() - sn * p.d.y(), sn * p.d.x() + c * p.d.y(),
+                                  p.dz * local / p.length);
+      } else {
+        pose.tip = p.a + c * p.d + sn * p.n.cross(p.d) + (p.dz * local / p.length) * p.n;
+      }
       pose.axis = axis_;
       break;
     }

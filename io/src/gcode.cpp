@@ -12,6 +12,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/file_text.hpp"
+#include "rs274.hpp"
 
 namespace dtis::io {
 namespace {
@@ -279,9 +280,14 @@ class GcodeReader::Blocks {
   std::array<bool, 3> uses_rotary_{};
 };
 
-GcodeReader::GcodeReader(const std::string& path)
-    : blocks_(std::make_unique<Blocks>(path)),
-      in_((RequireRegularFile(path), std::make_unique<std::ifstream>(path, std::ios::binary))) {
+GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter)
+    : blocks_(std::make_unique<Blocks>(path)) {
+  if (interpreter == GcodeInterpreter::kRs274ngc) {
+    rs274_ = std::make_unique<Rs274Reader>(path);
+    return;
+  }
+  RequireRegularFile(path);
+  in_ = std::make_unique<std::ifstream>(path, std::ios::binary);
   if (!*in_) throw Error("{}: cannot open the G-code file", path);
 }
 
@@ -291,9 +297,17 @@ GcodeReader::GcodeReader(std::string_view text, const std::string& source_name)
 GcodeReader::~GcodeReader() = default;
 
 const std::string& GcodeReader::File() const { return blocks_->File(); }
-const std::array<bool, 3>& GcodeReader::UsesRotary() const { return blocks_->UsesRotary(); }
+const std::array<bool, 3>& GcodeReader::UsesRotary() const {
+  return rs274_ ? rs274_->UsesRotary() : blocks_->UsesRotary();
+}
+
+const std::vector<std::pair<std::string, int>>& GcodeReader::Notes() const {
+  static const std::vector<std::pair<std::string, int>> kNone;
+  return rs274_ ? rs274_->Notes() : kNone;
+}
 
 std::optional<GcodeMove> GcodeReader::Next() {
+  if (rs274_) return rs274_->Next();
   while (!ended_) {
     std::string_view l;
     if (in_) {
@@ -321,6 +335,7 @@ GcodeProgram ReadAll(GcodeReader& reader) {
   program.file = reader.File();
   while (auto move = reader.Next()) program.moves.push_back(*move);
   program.uses_rotary = reader.UsesRotary();
+  program.notes = reader.Notes();
   return program;
 }
 
@@ -331,8 +346,8 @@ GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
   return ReadAll(reader);
 }
 
-GcodeProgram ReadGcode(const std::string& path) {
-  GcodeReader reader(path);
+GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter) {
+  GcodeReader reader(path, interpreter);
   return ReadAll(reader);
 }
 

@@ -85,6 +85,7 @@ template <typename Moves>
 std::unique_ptr<geometry::G1Path> GcodeSegments::Smooth(Moves&& moves) const {
   geometry::CornerOptions corners = options_.corners;
   corners.feed_mm_s = chain_feed_;
+  if (chain_tolerance_ > 0.0) corners.contour_tol_mm = chain_tolerance_;
   try {
     return std::make_unique<geometry::G1Path>(chain_tip_, chain_axis_, std::forward<Moves>(moves),
                                               machine_, corners);
@@ -172,8 +173,13 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     c.tip = m.to;
     c.axis = next_axis;
     c.center = m.center;
+    c.normal = m.normal;
     c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
+    c.turns = m.turns;
     c.line = m.line;
+    r.tolerance_mm = m.tolerance_mm;
+    r.stop = m.stop;
+    r.rest_before = m.rest_before;
     return r;
   }
 }
@@ -184,6 +190,7 @@ bool GcodeSegments::Joins(const Read& r) const {
   if (r.feed != chain_feed_ || r.rapid != chain_rapid_ || (r.rapid && !options_.blend_rapids)) {
     return false;
   }
+  if (last_stop_ || r.rest_before || r.tolerance_mm != chain_tolerance_) return false;
   const Vector3d out = geometry::EndTangent(last_from_, last_);
   const Vector3d in = geometry::StartTangent(tip_, r.move);
   const double angle = geometry::Angle(out, in);
@@ -196,6 +203,7 @@ void GcodeSegments::Open(const Read& r) {
   chain_tip_ = tip_;
   chain_axis_ = axis_;
   chain_feed_ = r.feed;
+  chain_tolerance_ = r.tolerance_mm;
   chain_first_line_ = r.move.line;
   chain_rapid_ = r.rapid;
   chain_five_axis_ = false;
@@ -215,6 +223,7 @@ void GcodeSegments::Append(const Read& r) {
   }
   last_from_ = tip_;
   last_ = r.move;
+  last_stop_ = r.stop;
   tip_ = r.move.tip;
   axis_ = r.move.axis;
 }

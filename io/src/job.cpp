@@ -71,6 +71,11 @@ void ReadPath(TomlTable& root, Job* out) {
   if (kind == "gcode") {
     job.path.kind = PathSpec::Kind::kGcode;
     job.path.gcode_file = ResolveRelative(job.file, path.String("file"));
+    if (path.Has("interpreter")) {
+      job.path.gcode.interpreter = path.Choice("interpreter", {"rs274ngc", "dtis"}) == "dtis"
+                                       ? GcodeInterpreter::kDtis
+                                       : GcodeInterpreter::kRs274ngc;
+    }
     ReadCornerOptions(path, &job.path.gcode.corners);
     if (auto r = path.OptionalPositiveNumber("rapid_feed_mm_min")) {
       job.path.gcode.rapid_feed_mm_s = *r / 60.0;
@@ -629,8 +634,9 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   }
   ProgressMeter meter(options);
   meter.Phase("reading G-code");
-  const GcodeProgram program = ReadGcode(job.path.gcode_file);
+  const GcodeProgram program = ReadGcode(job.path.gcode_file, job.path.gcode.interpreter);
   r->blocks = static_cast<int>(program.moves.size());
+  r->gcode_notes = program.notes;
   meter.Phase("building contours");
   const GcodePlan plan = BuildGcodePlan(program, *r->machine, job.vpop, job.path.gcode);
   r->chains = plan.chains;
@@ -756,6 +762,10 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
     out +=
         fmt::format("program          {}: {} moves, {} contours, {} rapids, {} smoothed corners\n",
                     job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
+    out += fmt::format("interpreter      {}\n", GcodeInterpreterName(job.path.gcode.interpreter));
+    for (const auto& [what, count] : r.gcode_notes) {
+      out += fmt::format("                 {} x {}\n", count, what);
+    }
   }
   out += fmt::format("motion time      {:.6f} s\n", r.verify.motion_time_s);
   out += fmt::format("setpoints        {} at {:.6g} ms\n", r.verify.rows, job.vpop.period_s * 1e3);

@@ -16,8 +16,8 @@
 // orientation is C2 at both connections, which none of the paper's three parametrizations gives.
 // Those three are kept as options for comparison.
 //
-// G2/G3 arcs join the chain where they meet their neighbours tangentially; the interpolator's exact
-// axis checks handle the curvature jump there.
+// G2/G3 arcs and helices, in any of the three planes, join the chain where they meet their
+// neighbours tangentially; the interpolator's exact axis checks handle the curvature jump there.
 #pragma once
 
 #include <Eigen/Core>
@@ -60,11 +60,16 @@ struct CornerOptions {
 // One element of a chain, as programmed.
 struct ChainMove {
   enum class Kind { kLine, kArc } kind = Kind::kLine;
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // end point, mm
-  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();   // tool axis at the end point (unit)
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();  // arcs: centre, z of the start
-  bool clockwise = false;                            // arcs: G2
-  int line = 0;                                      // source line, for messages
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();    // end point, mm
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // tool axis at the end point (unit)
+  // Arcs and helices: a point on the axis, the axis (unit: +Z for G17, +Y for G18, +X for G19),
+  // the direction about it (G2: clockwise seen from +axis) and the number of turns begun (1: less
+  // than one whole turn; LinuxCNC's P word). The tip rises along the axis over the sweep.
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  bool clockwise = false;
+  int turns = 1;
+  int line = 0;  // source line, for messages
 };
 
 // Eq. 8 of the paper on a stretch of path: the largest feed at which no axis exceeds its
@@ -145,7 +150,8 @@ class G1Path final : public PathSource {
     Eigen::Vector3d a = Eigen::Vector3d::Zero(), d = Eigen::Vector3d::Zero();
     // line (5-axis): top point at the start and the end
     Eigen::Vector3d ta = Eigen::Vector3d::Zero(), tb = Eigen::Vector3d::Zero();
-    double radius = 0.0, sweep = 0.0, dz = 0.0;  // arc: signed sweep (rad), rise (mm)
+    double radius = 0.0, sweep = 0.0, dz = 0.0;    // arc: signed sweep (rad), rise (mm)
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();  // arc: axis
     long corner = -1;
     double w[6] = {};  // corner (kC2): top parameter = sum w_k t^k, t = tip arc length / length
   };

@@ -1,11 +1,12 @@
 // G-code programs in the RS274/NGC dialect that LinuxCNC runs, read into moves (corner
-// smoothing and planning build on them).
+// smoothing and planning build on them), by LinuxCNC's own interpreter (io/src/rs274.cpp) or by
+// dtis' built-in reader.
 //
-// Supported: G0 G1 G2 G3 (arcs in the XY plane, G17, with I/J centre offsets or R), G17, G20/G21,
-// G90/G91, G94, G40/G49/G80 (cancels, accepted), F, N, S, T, M2/M30 (end), M3/M4/M5/M6/M7/M8/M9
-// (spindle, tool, coolant: accepted, no motion), comments in ( ) and after ;, a lone % line.
-// Linear axes X Y Z in the program's units (converted to mm), rotary axes A B C in degrees. Any
-// other word is an error naming the line and column.
+// The built-in reader supports: G0 G1 G2 G3 (arcs in the XY plane, G17, with I/J centre offsets or
+// R), G17, G20/G21, G90/G91, G94, G40/G49/G80 (cancels, accepted), F, N, S, T, M2/M30 (end),
+// M3/M4/M5/M6/M7/M8/M9 (spindle, tool, coolant: accepted, no motion), comments in ( ) and after ;,
+// a lone % line. Linear axes X Y Z in the program's units (converted to mm), rotary axes A B C in
+// degrees. Any other word is an error naming the line and column.
 #pragma once
 
 #include <Eigen/Core>
@@ -16,9 +17,12 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace dtis::io {
+
+class Rs274Reader;
 
 struct GcodeMove {
   enum class Kind : std::uint8_t { kRapid, kLinear, kArcCw, kArcCcw };
@@ -28,20 +32,44 @@ struct GcodeMove {
   Eigen::Vector3d center = Eigen::Vector3d::Zero();  // arcs: absolute centre (z of the start)
   double feed_mm_min = 0.0;                          // 0 for rapids
   int line = 0;                                      // 1-based line of the block
+  // Arcs and helices: the axis (+Z for G17, +Y for G18, +X for G19; G2 turns clockwise seen from
+  // its tip) and the number of turns begun (LinuxCNC's P word; 1: less than one whole turn).
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  int turns = 1;
+  // Path control (G61, G61.1, G64 P): the tip stays within this distance of the programmed
+  // corners, mm; 0: the job's contour tolerance. `stop` (exact stop or exact path): the machine
+  // comes to rest at the end of this move. `rest_before`: at its start (after a dwell).
+  double tolerance_mm = 0.0;
+  bool stop = false;
+  bool rest_before = false;
 };
+
+// Which interpreter reads a program: LinuxCNC's own (rs274ngc, through the dtis-rs274 program:
+// the whole dialect, O-words, parameters, every plane, work offsets) or dtis' built-in reader
+// (the subset above, in the library itself).
+enum class GcodeInterpreter : std::uint8_t { kRs274ngc, kDtis };
+
+// rs274ngc when dtis was built with LinuxCNC's interpreter, else dtis.
+GcodeInterpreter DefaultGcodeInterpreter();
+// "rs274ngc" or "dtis".
+const char* GcodeInterpreterName(GcodeInterpreter interpreter);
 
 struct GcodeProgram {
   std::string file;
   std::vector<GcodeMove> moves;
   std::array<bool, 3> uses_rotary{};  // A, B, C appear in the program
+  // What the program asks that moves nothing (spindle, coolant, tool changes, dwells), with how
+  // many times: listed in the run summary.
+  std::vector<std::pair<std::string, int>> notes;
 };
 
 // A program read one move at a time, in constant memory (a line and the modal state), for programs
 // too long to hold: Next() throws dtis::Error "<file>:<line>:<column>: ..." at a bad block.
 class GcodeReader {
  public:
-  // Reads the file at `path` (throws when it cannot be opened).
-  explicit GcodeReader(const std::string& path);
+  // Reads the file at `path` (throws when it cannot be opened) with `interpreter`.
+  explicit GcodeReader(const std::string& path,
+                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis);
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
   GcodeReader(std::string_view text, const std::string& source_name);
   ~GcodeReader();
@@ -51,13 +79,16 @@ class GcodeReader {
   // The next move, or nothing at the end of the program (M2/M30 or the end of the text).
   std::optional<GcodeMove> Next();
   const std::string& File() const;
-  // A, B, C words seen so far.
+  // A, B, C words seen so far (rs274ngc: rotary axes moved away from zero so far).
   const std::array<bool, 3>& UsesRotary() const;
+  // GcodeProgram::notes, so far.
+  const std::vector<std::pair<std::string, int>>& Notes() const;
 
  private:
   class Blocks;
   std::unique_ptr<Blocks> blocks_;
-  std::unique_ptr<std::ifstream> in_;  // the file; without one, text_ from offset_
+  std::unique_ptr<Rs274Reader> rs274_;  // LinuxCNC's interpreter, when it reads
+  std::unique_ptr<std::ifstream> in_;   // the file; without one, text_ from offset_
   std::string_view text_;
   std::size_t offset_ = 0;
   std::string line_text_;
@@ -66,7 +97,8 @@ class GcodeReader {
 };
 
 // The whole program. Throws dtis::Error "<file>:<line>:<column>: ..." on the first bad block.
-GcodeProgram ReadGcode(const std::string& path);
+GcodeProgram ReadGcode(const std::string& path,
+                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis);
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name);
 
 }  // namespace dtis::io

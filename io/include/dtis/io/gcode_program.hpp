@@ -7,8 +7,8 @@
 // machine's rotary axes, which set the tool axis through the machine's forward kinematics (TCP
 // programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts at the
 // end of its first move (the positioning move). A chain ends, and the machine comes to rest,
-// between rapids and feed moves, at a change of feed, a junction with an arc that is not tangent,
-// or a reversal.
+// between rapids and feed moves, at a change of feed or of G64 tolerance, after every block under
+// G61 or G61.1, at a dwell, a junction with an arc that is not tangent, or a reversal.
 #pragma once
 
 #include <array>
@@ -27,6 +27,8 @@
 namespace dtis::io {
 
 struct GcodeOptions {
+  // Who reads the program: LinuxCNC's interpreter or dtis' built-in reader (gcode.hpp).
+  GcodeInterpreter interpreter = DefaultGcodeInterpreter();
   geometry::CornerOptions corners;
   // Feed of rapids (mm/s); 0: as fast as the machine's linear axes allow.
   double rapid_feed_mm_s = 0.0;
@@ -111,6 +113,9 @@ class GcodeSegments {
     geometry::ChainMove move;
     double feed = 0.0;
     bool rapid = false;
+    double tolerance_mm = 0.0;  // the corners' contour tolerance (G64 P), 0: the job's
+    bool stop = false;          // the machine comes to rest at the move's end (G61, G61.1)
+    bool rest_before = false;   // and at its start (a dwell before it)
   };
   std::optional<Read> ReadMove();
   bool Joins(const Read& r) const;
@@ -138,10 +143,11 @@ class GcodeSegments {
   std::vector<geometry::ChainMove> chain_;
   std::size_t chain_moves_ = 0;
   Eigen::Vector3d chain_tip_ = Eigen::Vector3d::Zero(), chain_axis_ = Eigen::Vector3d::UnitZ();
-  double chain_feed_ = 0.0;
+  double chain_feed_ = 0.0, chain_tolerance_ = 0.0;
   int chain_first_line_ = 0;
   bool chain_rapid_ = false, chain_five_axis_ = false;
   geometry::ChainMove last_;
+  bool last_stop_ = false;
   Eigen::Vector3d last_from_ = Eigen::Vector3d::Zero();
   std::optional<Read> carry_;   // read, the first move of the next chain
   bool windowed_open_ = false;  // a windowed chain is still reading its moves from here

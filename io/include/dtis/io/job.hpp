@@ -99,6 +99,8 @@ struct RunResult {
   double path_length_mm = 0.0;
   // G-code jobs.
   int blocks = 0, chains = 0, rapids = 0, corners = 0;
+  // G-code: what the program asked that moves nothing (GcodeProgram::notes).
+  std::vector<std::pair<std::string, int>> gcode_notes;
   // Surface jobs.
   int passes = 0;
   int links = 0;

@@ -1,0 +1,289 @@
+#include "rs274.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <string_view>
+
+#include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
+
+extern char** environ;
+
+namespace dtis::io {
+namespace {
+
+// The words of a record after its kind: numbers, or a number and the rest of the line as text.
+class Fields {
+ public:
+  explicit Fields(std::string_view text) : text_(text) {}
+  bool Number(double* value) {
+    Skip();
+    const auto [end, ec] = std::from_chars(text_.data(), text_.data() + text_.size(), *value);
+    if (ec != std::errc() || !std::isfinite(*value)) return false;
+    text_.remove_prefix(static_cast<std::size_t>(end - text_.data()));
+    return true;
+  }
+  bool Integer(long* value) {
+    Skip();
+    const auto [end, ec] = std::from_chars(text_.data(), text_.data() + text_.size(), *value);
+    if (ec != std::errc()) return false;
+    text_.remove_prefix(static_cast<std::size_t>(end - text_.data()));
+    return true;
+  }
+  std::string_view Rest() {
+    Skip();
+    return text_;
+  }
+  bool Done() {
+    Skip();
+    return text_.empty();
+  }
+
+ private:
+  void Skip() {
+    while (!text_.empty() && text_.front() == ' ') text_.remove_prefix(1);
+  }
+  std::string_view text_;
+};
+
+}  // namespace
+
+std::string Rs274Program() {
+  if (const char* env = std::getenv("DTIS_RS274"); env != nullptr && *env != '\0') return env;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path next_to = exe.parent_path() / "dtis-rs274";
+    if (std::filesystem::is_regular_file(next_to, ec)) return next_to.string();
+  }
+#ifdef DTIS_RS274_BUILD_PATH
+  if (std::filesystem::is_regular_file(DTIS_RS274_BUILD_PATH, ec)) return DTIS_RS274_BUILD_PATH;
+#endif
+  return {};
+}
+
+GcodeInterpreter DefaultGcodeInterpreter() {
+#ifdef DTIS_RS274_BUILD_PATH
+  return GcodeInterpreter::kRs274ngc;
+#else
+  return GcodeInterpreter::kDtis;
+#endif
+}
+
+const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
+  return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
+}
+
+Rs274Reader::Rs274Reader(const std::string& path) : file_(path) {
+  RequireRegularFile(path);
+  if (::access(path.c_str(), R_OK) != 0) {
+    throw Error("{}: cannot open the G-code file: {}", path, std::strerror(errno));
+  }
+  const std::string program = Rs274Program();
+  if (program.empty()) {
+    throw Error(
+        "{}: LinuxCNC's G-code interpreter (the dtis-rs274 program) was not found next to dtis; "
+        "build dtis with linuxcnc-uspace-dev installed, set DTIS_RS274 to the program, or read "
+        "the program with dtis' own reader (interpreter = \"dtis\" in the job's [gcode])",
+        path);
+  }
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) {
+    throw Error("{}: cannot start {}: {}", path, program, std::strerror(errno));
+  }
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, pipe_fds[1], STDOUT_FILENO);
+  // The interpreter's own chatter (missing parameter file, Python) is not the program's.
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  std::string arg0 = program, arg1 = path;
+  char* argv[] = {arg0.data(), arg1.data(), nullptr};
+  const int spawned = ::posix_spawn(&pid_, program.c_str(), &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  ::close(pipe_fds[1]);
+  if (spawned != 0) {
+    ::close(pipe_fds[0]);
+    pid_ = -1;
+    throw Error("{}: cannot start {}: {}", path, program, std::strerror(spawned));
+  }
+  out_ = ::fdopen(pipe_fds[0], "r");
+  if (out_ == nullptr) {
+    ::close(pipe_fds[0]);
+    Reap();
+    throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
+  }
+}
+
+Rs274Reader::~Rs274Reader() {
+  if (pid_ > 0) ::kill(pid_, SIGKILL);
+  if (out_ != nullptr) std::fclose(out_);
+  if (pid_ > 0) {
+    int status = 0;
+    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+  }
+}
+
+std::string Rs274Reader::Reap() {
+  if (pid_ <= 0) return {};
+  int status = 0;
+  pid_t done;
+  while ((done = ::waitpid(pid_, &status, 0)) < 0 && errno == EINTR) {
+  }
+  pid_ = -1;
+  if (done < 0) return {};
+  if (WIFSIGNALED(status)) {
+    return fmt::format("LinuxCNC's interpreter (dtis-rs274) died of signal {} ({})",
+                       WTERMSIG(status), ::strsignal(WTERMSIG(status)));
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) > 1) {
+    return fmt::format("LinuxCNC's interpreter (dtis-rs274) exited with status {}",
+                       WEXITSTATUS(status));
+  }
+  return {};
+}
+
+void Rs274Reader::Fail(int line, const std::string& what) {
+  ended_ = true;
+  Reap();
+  throw Error("{}:{}: {}", file_, line, what);
+}
+
+void Rs274Reader::BadRecord(const std::string& why) {
+  ended_ = true;
+  const std::string died = Reap();
+  if (!died.empty()) throw Error("{}: {} after {} records", file_, died, records_);
+  throw Error("{}: LinuxCNC's interpreter (dtis-rs274) wrote record {} '{}': {}", file_, records_,
+              record_.substr(0, 80), why);
+}
+
+void Rs274Reader::Note(const std::string& what) {
+  for (auto& [text, count] : notes_) {
+    if (text == what) {
+      ++count;
+      return;
+    }
+  }
+  notes_.emplace_back(what, 1);
+}
+
+std::optional<GcodeMove> Rs274Reader::Next() {
+  char buffer[4096];
+  while (!ended_) {
+    record_.clear();
+    bool got = false;
+    while (std::fgets(buffer, sizeof buffer, out_) != nullptr) {
+      got = true;
+      record_ += buffer;
+      if (!record_.empty() && record_.back() == '\n') break;
+    }
+    if (!got) BadRecord("the output ended before the program's end");
+    if (!record_.empty() && record_.back() == '\n') record_.pop_back();
+    ++records_;
+    if (record_ == "X") {
+      ended_ = true;
+      const std::string died = Reap();
+      if (!died.empty()) throw Error("{}: {}", file_, died);
+      return std::nullopt;
+    }
+    if (record_.size() < 2 || record_[1] != ' ') BadRecord("not a record");
+    const char kind = record_[0];
+    Fields f(std::string_view(record_).substr(2));
+    long line = 0;
+    if (!f.Integer(&line) || line < 0 || line > 1'000'000'000) BadRecord("no line number");
+    const auto numbers = [&](double* out, int n) {
+      for (int k = 0; k < n; ++k) {
+        if (!f.Number(&out[k])) BadRecord(fmt::format("expected {} numbers", n));
+      }
+    };
+    switch (kind) {
+      case 'E':
+        Fail(static_cast<int>(line), std::string(f.Rest()));
+      case 'I':
+        Note(std::string(f.Rest()));
+        continue;
+      case 'F': {
+        double v;
+        numbers(&v, 1);
+        feed_mm_min_ = v;
+        continue;
+      }
+      case 'P': {
+        double v[2];
+        numbers(v, 2);
+        stop_ = v[0] < 2.5;  // exact stop or exact path: the machine stops at every block's end
+        tolerance_mm_ = v[1];
+        if (stop_)
+          Note(v[0] < 1.5 ? "exact stop (G61.1)" : "exact path (G61): a stop at every corner");
+        continue;
+      }
+      case 'D': {
+        double v;
+        numbers(&v, 1);
+        rest_next_ = true;
+        Note("dwell (G4): the motion comes to rest there; the dwell time is not in the setpoints");
+        continue;
+      }
+      case 'T':
+      case 'L':
+      case 'A': {
+        GcodeMove m;
+        m.line = static_cast<int>(line);
+        double p[13];
+        const int n = kind == 'A' ? 13 : 6;
+        numbers(p, n);
+        if (!f.Done()) BadRecord("trailing fields");
+        m.to = Eigen::Vector3d(p[0], p[1], p[2]);
+        const double* abc = p + n - 3;
+        for (std::size_t k = 0; k < 3; ++k) {
+          m.rotary[k] = abc[k];
+          if (abc[k] != 0.0) uses_rotary_[k] = true;
+        }
+        if (kind == 'T') {
+          m.kind = GcodeMove::Kind::kRapid;
+        } else {
+          m.feed_mm_min = feed_mm_min_;
+          if (!(feed_mm_min_ > 0.0)) {
+            Fail(m.line, "a feed move with no feed rate (program an F word before it)");
+          }
+          m.kind = GcodeMove::Kind::kLinear;
+        }
+        if (kind == 'A') {
+          m.center = Eigen::Vector3d(p[3], p[4], p[5]);
+          m.normal = Eigen::Vector3d(p[6], p[7], p[8]);
+          if (std::abs(m.normal.norm() - 1.0) > 1e-9) BadRecord("the arc's axis is not a unit");
+          const double turns = p[9];
+          if (turns == 0.0 || std::abs(turns) > 1e6 || turns != std::round(turns)) {
+            BadRecord("the arc's turns are not a whole number");
+          }
+          m.kind = turns > 0.0 ? GcodeMove::Kind::kArcCcw : GcodeMove::Kind::kArcCw;
+          m.turns = static_cast<int>(std::abs(turns));
+        }
+        m.tolerance_mm = tolerance_mm_;
+        m.stop = stop_;
+        m.rest_before = std::exchange(rest_next_, false);
+        return m;
+      }
+      case 'N':
+        Fail(static_cast<int>(line),
+             "G5.2 NURBS blocks are not planned yet (dtis plans G0, G1, G2 and G3 moves)");
+      default:
+        BadRecord("unknown record");
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace dtis::io

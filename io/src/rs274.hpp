@@ -1,0 +1,58 @@
+// G-code through LinuxCNC's own interpreter: the dtis-rs274 program (tools/rs274) runs it and
+// writes its canonical machining calls as text records, read here into moves. Internal to io.
+#pragma once
+
+#include <sys/types.h>
+
+#include <array>
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dtis/io/gcode.hpp"
+
+namespace dtis::io {
+
+// The dtis-rs274 program: $DTIS_RS274, else next to the running program, else where the build
+// put it; empty when none is found.
+std::string Rs274Program();
+
+class Rs274Reader {
+ public:
+  // Starts the interpreter on the file at `path`. Throws dtis::Error when the file cannot be read
+  // or dtis-rs274 cannot be started.
+  explicit Rs274Reader(const std::string& path);
+  ~Rs274Reader();  // stops the interpreter if it is still running
+  Rs274Reader(const Rs274Reader&) = delete;
+  Rs274Reader& operator=(const Rs274Reader&) = delete;
+
+  // The next move; nothing at the program's end. Throws dtis::Error "<file>:<line>: <LinuxCNC's
+  // message>" at a block the interpreter refuses.
+  std::optional<GcodeMove> Next();
+  const std::string& File() const { return file_; }
+  const std::array<bool, 3>& UsesRotary() const { return uses_rotary_; }
+  const std::vector<std::pair<std::string, int>>& Notes() const { return notes_; }
+
+ private:
+  [[noreturn]] void Fail(int line, const std::string& what);
+  [[noreturn]] void BadRecord(const std::string& why);
+  void Note(const std::string& what);
+  // Waits for the interpreter to exit; a message when it did not exit as it should.
+  std::string Reap();
+
+  std::string file_;
+  pid_t pid_ = -1;
+  std::FILE* out_ = nullptr;
+  std::string record_;
+  long records_ = 0;
+  bool ended_ = false;
+  // What the records set for the moves that follow.
+  double feed_mm_min_ = 0.0, tolerance_mm_ = 0.0;
+  bool stop_ = false, rest_next_ = false;
+  std::array<bool, 3> uses_rotary_{};
+  std::vector<std::pair<std::string, int>> notes_;
+};
+
+}  // namespace dtis::io

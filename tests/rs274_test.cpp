@@ -1,0 +1,206 @@
+// G-code through LinuxCNC's own interpreter (dtis-rs274): the programs post-processors write in
+// tests/data/gcode read, their arcs in every plane followed exactly, G64 P as the contour
+// tolerance, inverse-time feeds, and LinuxCNC's own messages for bad programs.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "dtis/core/error.hpp"
+#include "dtis/geometry/g1_path.hpp"
+#include "dtis/io/gcode.hpp"
+#include "dtis/io/gcode_program.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis::io {
+namespace {
+
+using Eigen::Vector3d;
+
+std::string Corpus(const std::string& name) { return test::Source("tests/data/gcode/" + name); }
+
+class Rs274 : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (DefaultGcodeInterpreter() != GcodeInterpreter::kRs274ngc) {
+      GTEST_SKIP() << "dtis was built without LinuxCNC's interpreter";
+    }
+  }
+};
+
+// Both readers turn the lock program into the same moves.
+TEST_F(Rs274, ReadsWhatTheBuiltInReaderReads) {
+  const std::string file = test::Source("samples/gcode/lock.ngc");
+  const GcodeProgram ours = ReadGcode(file, GcodeInterpreter::kDtis);
+  const GcodeProgram linuxcnc = ReadGcode(file, GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(ours.moves.size(), linuxcnc.moves.size());
+  for (std::size_t k = 0; k < ours.moves.size(); ++k) {
+    const GcodeMove& a = ours.moves[k];
+    const GcodeMove& b = linuxcnc.moves[k];
+    EXPECT_EQ(a.kind, b.kind) << k;
+    EXPECT_LT((a.to - b.to).norm(), 1e-12) << k;
+    EXPECT_EQ(a.feed_mm_min, b.feed_mm_min) << k;
+    EXPECT_EQ(a.line, b.line) << k;
+  }
+}
+
+// Every arc of a program with arcs in XY, XZ (G18), YZ (G19) and a two-turn helix: the smoothed
+// path follows the exact circle or helix within 1e-6 mm and ends where the program ends it.
+TEST_F(Rs274, ArcsInEveryPlaneAndHelicesAreExact) {
+  const GcodeProgram p = ReadGcode(Corpus("mastercam_arcs.ngc"), GcodeInterpreter::kRs274ngc);
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  int arcs = 0;
+  std::array<int, 3> planes{};
+  for (std::size_t k = 1; k < p.moves.size(); ++k) {
+    const GcodeMove& m = p.moves[k];
+    if (m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw) continue;
+    ++arcs;
+    for (int i = 0; i < 3; ++i) planes[static_cast<std::size_t>(i)] += m.normal[i] != 0.0;
+    const Vector3d from = p.moves[k - 1].to;
+    geometry::ChainMove c;
+    c.kind = geometry::ChainMove::Kind::kArc;
+    c.tip = m.to;
+    c.center = m.center;
+    c.normal = m.normal;
+    c.clockwise = m.kind == GcodeMove::Kind::kArcCw;
+    c.turns = m.turns;
+    c.line = m.line;
+    const geometry::G1Path path(from, Vector3d::UnitZ(), {c}, *machine);
+    const double length = *path.Length();
+    const Vector3d r0 = (from - m.center) - (from - m.center).dot(m.normal) * m.normal;
+    const double radius = r0.norm();
+    const double rise = m.normal.dot(m.to - from);
+    // The exact helix: the angle swept grows linearly with arc length, the rise too.
+    const double sweep_abs = std::sqrt(length * length - rise * rise) / radius;
+    const double sign = c.clockwise ? -1.0 : 1.0;
+    PathState st = path.Start();
+    double worst = 0.0;
+    for (int i = 0; i <= 400; ++i) {
+      const double s = length * i / 400.0;
+      const PathSample at = path.At(st, s);
+      st = at.state;
+      const double angle = sign * sweep_abs * s / length;
+      const Vector3d exact = m.center + (from - m.center).dot(m.normal) * m.normal +
+                             std::cos(angle) * r0 + std::sin(angle) * m.normal.cross(r0) +
+                             (rise * s / length) * m.normal;
+      worst = std::max(worst, (at.pose.tip - exact).norm());
+    }
+    EXPECT_LT(worst, 1e-6) << "line " << m.line;
+    EXPECT_LT((path.At(st, length).pose.tip - m.to).norm(), 1e-9) << "line " << m.line;
+    if (m.turns == 2) {
+      EXPECT_NEAR(sweep_abs, 4.0 * std::numbers::pi, 1e-9);  // two whole turns, P2
+      EXPECT_NEAR(rise, -4.0, 1e-12);
+    }
+  }
+  EXPECT_EQ(arcs, 4);
+  EXPECT_EQ(planes[0], 1);  // G19
+  EXPECT_EQ(planes[1], 1);  // G18
+  EXPECT_EQ(planes[2], 2);  // G17, the quarter and the helix
+}
+
+// G64 P0.01 in the program: its contours' corners stay within 0.01 mm of the programmed polyline
+// (measured on the smoothed path), where the job's own tolerance (0.05 mm here) would allow more.
+TEST_F(Rs274, G64PIsTheContourTolerance) {
+  const GcodeProgram p = ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kRs274ngc);
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  interp::VpopOptions base;
+  GcodeOptions options;
+  options.corners.contour_tol_mm = 0.05;
+  const GcodePlan plan = BuildGcodePlan(p, *machine, base, options);
+  // The distance from a point to the programmed polyline of the feed moves.
+  std::vector<Vector3d> polyline;
+  for (const GcodeMove& m : p.moves) polyline.push_back(m.to);
+  const auto to_polyline = [&](const Vector3d& x) {
+    double best = INFINITY;
+    for (std::size_t k = 0; k + 1 < polyline.size(); ++k) {
+      const Vector3d a = polyline[k], d = polyline[k + 1] - a;
+      const double t =
+          d.squaredNorm() > 0 ? std::clamp((x - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+      best = std::min(best, (a + t * d - x).norm());
+    }
+    return best;
+  };
+  double worst = 0.0;
+  int corners = 0;
+  for (std::size_t k = 0; k < plan.paths.size(); ++k) {
+    if (plan.rapid[k]) continue;
+    const auto& path = static_cast<const geometry::G1Path&>(*plan.paths[k]);
+    for (const auto& c : path.Corners()) {
+      ++corners;
+      PathState st = path.Start();
+      for (int i = 0; i <= 50; ++i) {
+        const PathSample at = path.At(st, c.s0 + (c.s1 - c.s0) * i / 50.0);
+        st = at.state;
+        worst = std::max(worst, to_polyline(at.pose.tip));
+        // The corner's middle lies exactly the tolerance away from the programmed corner (Eq. 3).
+        if (i == 25) {
+          double to_vertex = INFINITY;
+          for (const Vector3d& v : polyline)
+            to_vertex = std::min(to_vertex, (v - at.pose.tip).norm());
+          EXPECT_NEAR(to_vertex, 0.01, 1e-6) << "corner at line " << c.line;
+        }
+      }
+    }
+  }
+  EXPECT_GT(corners, 8);
+  EXPECT_LE(worst, 0.01 + 1e-9);
+}
+
+// G93: each F is the inverse of the move's time in minutes; the interpreter's feed per move is the
+// move's length times F.
+TEST_F(Rs274, InverseTimeFeedsArePerMove) {
+  const GcodeProgram p = ReadGcode(Corpus("inverse_time.ngc"), GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(p.moves.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.moves[2].feed_mm_min, 20.0 * 60.0);   // X20 in 1/60 min
+  EXPECT_DOUBLE_EQ(p.moves[3].feed_mm_min, 10.0 * 120.0);  // Y10 in 1/120 min
+  EXPECT_DOUBLE_EQ(p.moves[4].feed_mm_min, 1200.0);        // back in G94
+}
+
+// G20: lengths and feeds in inches become mm.
+TEST_F(Rs274, InchProgramsAreInMm) {
+  const GcodeProgram p = ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc);
+  ASSERT_GE(p.moves.size(), 4u);
+  EXPECT_NEAR(p.moves[2].to.x(), 25.4, 1e-12);
+  EXPECT_NEAR(p.moves[2].feed_mm_min, 40.0 * 25.4, 1e-9);
+  EXPECT_NEAR(p.moves[1].to.z(), -0.05 * 25.4, 1e-12);
+}
+
+// What moves nothing is listed, not refused.
+TEST_F(Rs274, ListsWhatMovesNothing) {
+  const GcodeProgram p = ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kRs274ngc);
+  std::string notes;
+  for (const auto& [what, count] : p.notes) notes += what + "\n";
+  EXPECT_NE(notes.find("tool change (M6)"), std::string::npos) << notes;
+  EXPECT_NE(notes.find("spindle on (M3)"), std::string::npos) << notes;
+  EXPECT_NE(notes.find("coolant (M8)"), std::string::npos) << notes;
+}
+
+// A bad program: LinuxCNC's own message, with the file and the line.
+TEST_F(Rs274, BadProgramsGiveLinuxCncsMessageWithFileAndLine) {
+  test::ExpectError([] { ReadGcode(Corpus("bad_word.ngc"), GcodeInterpreter::kRs274ngc); },
+                    "bad_word.ngc:4: E word with no G70, G76, M66, M67 or M68 to use it");
+  test::ExpectError([] { ReadGcode(Corpus("bad_arc.ngc"), GcodeInterpreter::kRs274ngc); },
+                    "bad_arc.ngc:4: Arc radius too small to reach end point");
+  test::ExpectError(
+      [] { ReadGcode(test::Source("tests/data/gcode/missing.ngc"), GcodeInterpreter::kRs274ngc); },
+      "missing.ngc");
+}
+
+// A reader dropped before the program's end stops the interpreter (no process is left behind,
+// and the next reader works).
+TEST_F(Rs274, ADroppedReaderStopsTheInterpreter) {
+  for (int k = 0; k < 3; ++k) {
+    GcodeReader reader(test::Source("samples/gcode/fine_wave.ngc"), GcodeInterpreter::kRs274ngc);
+    ASSERT_TRUE(reader.Next().has_value());
+  }
+  const GcodeProgram p = ReadGcode(Corpus("freecad_post.ngc"), GcodeInterpreter::kRs274ngc);
+  EXPECT_GT(p.moves.size(), 5u);
+}
+
+}  // namespace
+}  // namespace dtis::io
