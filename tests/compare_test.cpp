@@ -232,22 +232,26 @@ void CheckCompare(const io::Job& job, const std::string& dir) {
       }
       continue;
     }
-    // G1: the program read back is the program planned, and plans to the same time.
+    // G1: the program read back (by dtis' reader and by LinuxCNC's interpreter) is the program
+    // planned, and plans to the same time.
     const std::string file =
         fmt::format("{}/{}_g1_{:g}um.ngc", dir, job.name, v.tolerance_mm * 1e3);
-    const io::GcodeProgram back = io::ReadGcode(file);
-    io::GcodeOptions go;
-    go.corners = job.compare.corners;
-    go.rapid_feed_mm_s =
-        job.surface->link_feed_mm_s > 0 ? job.surface->link_feed_mm_s : job.vpop.feed_mm_s;
-    const io::GcodePlan plan = io::BuildGcodePlan(back, *machine, job.vpop, go);
-    const interp::ProgramResult program = interp::PlanProgram(plan.segments, *machine);
-    io::TableSink sink(*machine, job.vpop.period_s);
-    for (const auto& sp : program.setpoints) sink.Accept(sp);
-    EXPECT_EQ(interp::Verify(sink.Table(), *machine).motion_time_s, v.motion_time_s);
-    long g1 = 0;
-    for (const auto& m : back.moves) g1 += m.kind == io::GcodeMove::Kind::kLinear;
-    EXPECT_EQ(g1, v.blocks);
+    for (const auto reader : {io::GcodeInterpreter::kDtis, io::DefaultGcodeInterpreter()}) {
+      SCOPED_TRACE(io::GcodeInterpreterName(reader));
+      const io::GcodeProgram back = io::ReadGcode(file, reader);
+      io::GcodeOptions go;
+      go.corners = job.compare.corners;
+      go.rapid_feed_mm_s =
+          job.surface->link_feed_mm_s > 0 ? job.surface->link_feed_mm_s : job.vpop.feed_mm_s;
+      const io::GcodePlan plan = io::BuildGcodePlan(back, *machine, job.vpop, go);
+      const interp::ProgramResult program = interp::PlanProgram(plan.segments, *machine);
+      io::TableSink sink(*machine, job.vpop.period_s);
+      for (const auto& sp : program.setpoints) sink.Accept(sp);
+      EXPECT_EQ(interp::Verify(sink.Table(), *machine).motion_time_s, v.motion_time_s);
+      long g1 = 0;
+      for (const auto& m : back.moves) g1 += m.kind == io::GcodeMove::Kind::kLinear;
+      EXPECT_EQ(g1, v.blocks);
+    }
   }
   // Tighter exports are no farther.
   EXPECT_LE(r.variants[1].export_deviation_mm, r.variants[0].export_deviation_mm);

@@ -102,6 +102,40 @@ TEST_F(Rs274, ArcsInEveryPlaneAndHelicesAreExact) {
   EXPECT_EQ(planes[2], 2);  // G17, the quarter and the helix
 }
 
+// G5.2: the exact NURBS with LinuxCNC's knots, each curve its own contour. The rational quadratic
+// of the program is a quarter circle of radius 20: every point of the planned path lies on it.
+TEST_F(Rs274, NurbsAreExact) {
+  const GcodeProgram p = ReadGcode(Corpus("nurbs.ngc"), GcodeInterpreter::kRs274ngc);
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const GcodePlan plan = BuildGcodePlan(p, *machine, interp::VpopOptions{}, GcodeOptions{});
+  int curves = 0;
+  for (std::size_t k = 0; k < plan.paths.size(); ++k) {
+    if (plan.segments[k].name.find("NURBS") == std::string::npos) continue;
+    ++curves;
+    const PathSource& path = *plan.paths[k];
+    const double length = *path.Length();
+    PathState st = path.Start();
+    if (curves == 1) {
+      EXPECT_NEAR(length, 10.0 * std::numbers::pi, 1e-6);
+      double worst = 0.0;
+      for (int i = 0; i <= 200; ++i) {
+        const PathSample at = path.At(st, length * i / 200.0);
+        st = at.state;
+        worst = std::max(worst, std::abs(at.pose.tip.head<2>().norm() - 20.0));
+        EXPECT_NEAR(at.pose.tip.z(), 0.0, 1e-12);
+      }
+      EXPECT_LT(worst, 1e-9);
+      EXPECT_LT((path.At(st, length).pose.tip - Vector3d(0, 20, 0)).norm(), 1e-9);
+    } else {
+      // The cubic starts where the circle ended and ends at its last control point.
+      EXPECT_LT((path.At(st, 0.0).pose.tip - Vector3d(0, 20, 0)).norm(), 1e-9);
+      EXPECT_LT((path.At(st, length).pose.tip - Vector3d(-40, 20, 0)).norm(), 1e-9);
+    }
+  }
+  EXPECT_EQ(curves, 2);
+}
+
 // G64 P0.01 in the program: its contours' corners stay within 0.01 mm of the programmed polyline
 // (measured on the smoothed path), where the job's own tolerance (0.05 mm here) would allow more.
 TEST_F(Rs274, G64PIsTheContourTolerance) {

@@ -16,6 +16,24 @@ namespace {
 
 using Eigen::Vector3d;
 
+// LinuxCNC's G5.2 curve: `order` - 1 the degree, knots clamped and uniform (k zeros, then 1, 2, …,
+// then k times the last), rational unless every weight is 1.
+std::shared_ptr<const geometry::BSplineCurve> NurbsCurve(const GcodeMove::Nurbs& n,
+                                                         const std::string& file, int line) {
+  geometry::BSplineCurveData data;
+  data.degree = n.order - 1;
+  const int count = static_cast<int>(n.poles.size());
+  for (int i = 0; i < count + n.order; ++i) {
+    data.knots.push_back(i < n.order ? 0.0 : i < count ? i - n.order + 1 : count - n.order + 1);
+  }
+  data.poles = n.poles;
+  for (const double w : n.weights) {
+    if (w != 1.0) data.weights = n.weights;
+  }
+  return std::make_shared<const geometry::BSplineCurve>(std::move(data),
+                                                        fmt::format("{}:{}: G5.2", file, line));
+}
+
 }  // namespace
 
 std::array<int, 3> RotaryWordAxes(const Machine& machine) {
@@ -97,7 +115,17 @@ std::unique_ptr<geometry::G1Path> GcodeSegments::Smooth(Moves&& moves) const {
 GcodeSegment GcodeSegments::Flush() {
   GcodeSegment segment = ChainSegment();
   segment.five_axis = chain_five_axis_;
-  if (chain_rapid_ && chain_moves_ == 1) {
+  if (chain_nurbs_) {
+    // A G5.2 curve: the exact NURBS, the tool axis held.
+    if (!scan_only_) {
+      try {
+        segment.path = std::make_unique<geometry::CurvePath>(*chain_nurbs_, chain_axis_);
+      } catch (const Error& e) {
+        throw Error("{}:{}: {}", file_, last_.line, e.what());
+      }
+    }
+    segment.name = fmt::format("{}:{}: NURBS (G5.2)", file_, last_.line);
+  } else if (chain_rapid_ && chain_moves_ == 1) {
     // A lone rapid: the straight move it is.
     if (!scan_only_) {
       segment.path = geometry::StraightMove(chain_tip_, chain_[0].tip, chain_axis_, chain_[0].axis);
@@ -154,7 +182,8 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     const Vector3d next_axis = axis_of_(m);
     const bool moves_tip = (m.to - tip_).norm() > 1e-9;
     const bool turns = (next_axis - axis_).norm() > 1e-12;
-    if (!moves_tip && m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw) {
+    if (!moves_tip && m.kind != GcodeMove::Kind::kArcCw && m.kind != GcodeMove::Kind::kArcCcw &&
+        m.kind != GcodeMove::Kind::kNurbs) {
       if (turns) {
         throw Error(
             "{}:{}: the block turns the tool without moving its tip (not supported: give the "
@@ -180,6 +209,7 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     r.tolerance_mm = m.tolerance_mm;
     r.stop = m.stop;
     r.rest_before = m.rest_before;
+    if (m.kind == GcodeMove::Kind::kNurbs) r.nurbs = NurbsCurve(*m.nurbs, file_, m.line);
     return r;
   }
 }
@@ -191,6 +221,7 @@ bool GcodeSegments::Joins(const Read& r) const {
     return false;
   }
   if (last_stop_ || r.rest_before || r.tolerance_mm != chain_tolerance_) return false;
+  if (r.nurbs || chain_nurbs_) return false;  // a G5.2 curve is planned alone, rest to rest
   const Vector3d out = geometry::EndTangent(last_from_, last_);
   const Vector3d in = geometry::StartTangent(tip_, r.move);
   const double angle = geometry::Angle(out, in);
@@ -204,6 +235,7 @@ void GcodeSegments::Open(const Read& r) {
   chain_axis_ = axis_;
   chain_feed_ = r.feed;
   chain_tolerance_ = r.tolerance_mm;
+  chain_nurbs_ = r.nurbs;
   chain_first_line_ = r.move.line;
   chain_rapid_ = r.rapid;
   chain_five_axis_ = false;

@@ -276,9 +276,43 @@ std::optional<GcodeMove> Rs274Reader::Next() {
         m.rest_before = std::exchange(rest_next_, false);
         return m;
       }
-      case 'N':
-        Fail(static_cast<int>(line),
-             "G5.2 NURBS blocks are not planned yet (dtis plans G0, G1, G2 and G3 moves)");
+      case 'N': {
+        // order z a b c count, then x y w per control point (the first: where the move starts).
+        double head[6];
+        numbers(head, 6);
+        const double order = head[0], count = head[5];
+        if (order < 2 || order > 16 || order != std::round(order) || count < order || count > 1e7 ||
+            count != std::round(count)) {
+          BadRecord("a NURBS needs an order from 2 to 16 and at least as many control points");
+        }
+        auto nurbs = std::make_shared<GcodeMove::Nurbs>();
+        nurbs->order = static_cast<int>(order);
+        for (long k = 0; k < static_cast<long>(count); ++k) {
+          double p[3];
+          numbers(p, 3);
+          if (!(p[2] > 0.0)) Fail(static_cast<int>(line), "a NURBS weight (P) must be positive");
+          nurbs->poles.emplace_back(p[0], p[1], head[1]);
+          nurbs->weights.push_back(p[2]);
+        }
+        if (!f.Done()) BadRecord("trailing fields");
+        GcodeMove m;
+        m.line = static_cast<int>(line);
+        m.kind = GcodeMove::Kind::kNurbs;
+        m.to = nurbs->poles.back();
+        for (std::size_t k = 0; k < 3; ++k) {
+          m.rotary[k] = head[2 + k];
+          if (head[2 + k] != 0.0) uses_rotary_[k] = true;
+        }
+        m.feed_mm_min = feed_mm_min_;
+        if (!(feed_mm_min_ > 0.0)) {
+          Fail(m.line, "a feed move with no feed rate (program an F word before it)");
+        }
+        m.nurbs = std::move(nurbs);
+        m.tolerance_mm = tolerance_mm_;
+        m.stop = stop_;
+        m.rest_before = std::exchange(rest_next_, false);
+        return m;
+      }
       default:
         BadRecord("unknown record");
     }

@@ -25,7 +25,7 @@ namespace dtis::io {
 class Rs274Reader;
 
 struct GcodeMove {
-  enum class Kind : std::uint8_t { kRapid, kLinear, kArcCw, kArcCcw };
+  enum class Kind : std::uint8_t { kRapid, kLinear, kArcCw, kArcCcw, kNurbs };
   Kind kind = Kind::kLinear;
   Eigen::Vector3d to = Eigen::Vector3d::Zero();      // absolute, mm
   std::array<double, 3> rotary{};                    // absolute A, B, C, degrees
@@ -42,6 +42,14 @@ struct GcodeMove {
   double tolerance_mm = 0.0;
   bool stop = false;
   bool rest_before = false;
+  // G5.2 NURBS (LinuxCNC's interpreter only): the control points, from the start of the move to
+  // `to`, their weights and the order (degree + 1); the knots are LinuxCNC's, clamped and uniform.
+  struct Nurbs {
+    std::vector<Eigen::Vector3d> poles;
+    std::vector<double> weights;
+    int order = 0;
+  };
+  std::shared_ptr<const Nurbs> nurbs;
 };
 
 // Which interpreter reads a program: LinuxCNC's own (rs274ngc, through the dtis-rs274 program:

@@ -116,6 +116,7 @@ class GcodeSegments {
     double tolerance_mm = 0.0;  // the corners' contour tolerance (G64 P), 0: the job's
     bool stop = false;          // the machine comes to rest at the move's end (G61, G61.1)
     bool rest_before = false;   // and at its start (a dwell before it)
+    std::shared_ptr<const geometry::BSplineCurve> nurbs;  // G5.2: the curve, its own chain
   };
   std::optional<Read> ReadMove();
   bool Joins(const Read& r) const;
@@ -148,6 +149,7 @@ class GcodeSegments {
   bool chain_rapid_ = false, chain_five_axis_ = false;
   geometry::ChainMove last_;
   bool last_stop_ = false;
+  std::shared_ptr<const geometry::BSplineCurve> chain_nurbs_;  // the chain is this G5.2 curve
   Eigen::Vector3d last_from_ = Eigen::Vector3d::Zero();
   std::optional<Read> carry_;   // read, the first move of the next chain
   bool windowed_open_ = false;  // a windowed chain is still reading its moves from here
