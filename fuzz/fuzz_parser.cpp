@@ -19,6 +19,7 @@ namespace {
 #define DTIS_PARSER_setpoints 4
 #define DTIS_PARSER_gcode 5
 #define DTIS_PARSER_limiters 6
+#define DTIS_PARSER_rs274 7
 #define DTIS_CAT(a, b) a##b
 #define DTIS_SELECT(x) DTIS_CAT(DTIS_PARSER_, x)
 #define DTIS_PARSER DTIS_SELECT(DTIS_FUZZ_PARSER)
@@ -34,10 +35,12 @@ void Parse(std::string_view text) {
   dtis::io::ParseSetpoints(text, "fuzz.csv");
 #elif DTIS_PARSER == DTIS_PARSER_gcode
   dtis::io::ParseGcode(text, "fuzz.ngc");
+#elif DTIS_PARSER == DTIS_PARSER_rs274
+  dtis::io::ParseRs274Records(text, "fuzz.ngc");
 #elif DTIS_PARSER == DTIS_PARSER_limiters
   dtis::io::ParseLimiters(text, "fuzz.csv", {"X", "Y", "Z", "A", "C"});
 #else
-#error "DTIS_FUZZ_PARSER must be job, curve, machine, setpoints, limiters or gcode"
+#error "DTIS_FUZZ_PARSER must be job, curve, machine, setpoints, limiters, gcode or rs274"
 #endif
 }
 

@@ -3,7 +3,7 @@
 # - the example in examples/plan (docs/library.md) configures with find_package(dtis), builds
 #   against the installed headers and libraries only, and runs on an installed sample;
 # - the installed dtis runs an installed sample, writes a report with the plotly.js installed
-#   beside it, and has its manual page.
+#   beside it, has its manual page, and reads G-code with the dtis-rs274 installed beside it.
 set -euo pipefail
 build=$1
 root=$2
@@ -36,6 +36,12 @@ else
   (cd "$work" && "$prefix/bin/dtis" run "$samples/jobs/line.toml" -o line.csv -q)
 fi
 "$prefix/bin/dtis" --version | grep -q "^dtis [0-9]"
+# LinuxCNC's interpreter, installed next to dtis (which looks there first), reads the G-code sample.
+if [ -x "$build/cli/dtis-rs274" ]; then
+  test -x "$prefix/bin/dtis-rs274"
+  (cd "$work" && env -u DTIS_RS274 "$prefix/bin/dtis" run "$samples/jobs/lock.toml" -o lock.csv 2>&1) \
+    | grep -q "^interpreter *rs274ngc"
+fi
 
 cmake -S "$root/examples/plan" -B "$work/example" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" \
   >"$work/example.log" 2>&1 || { cat "$work/example.log" >&2; exit 1; }

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/g1_path.hpp"
@@ -234,6 +236,37 @@ TEST_F(Rs274, ADroppedReaderStopsTheInterpreter) {
   }
   const GcodeProgram p = ReadGcode(Corpus("freecad_post.ngc"), GcodeInterpreter::kRs274ngc);
   EXPECT_GT(p.moves.size(), 5u);
+}
+
+// The records dtis-rs274 writes, read without it: what each becomes, and a clear error (never a
+// crash) for a record that is not one; the fuzz target fuzz_rs274 reads the same way.
+TEST(Rs274Records, ReadIntoMovesOrAClearError) {
+  const GcodeProgram p = ParseRs274Records(
+      "T 1 0 0 5 0 0 0\nF 2 600\nL 2 10 0 5 0 0 0\nP 3 3 0.01\n"
+      "A 4 10 10 5 10 5 5 0 0 1 -2 0 0 0\nD 5 0.5\nI 6 spindle on (M3)\n"
+      "N 7 3 5 0 0 0 3 10 10 1 20 10 0.5 20 20 1\nX\n",
+      "p.ngc");
+  ASSERT_EQ(p.moves.size(), 4u);
+  EXPECT_EQ(p.moves[0].kind, GcodeMove::Kind::kRapid);
+  EXPECT_EQ(p.moves[1].feed_mm_min, 600.0);
+  EXPECT_EQ(p.moves[2].kind, GcodeMove::Kind::kArcCw);
+  EXPECT_EQ(p.moves[2].turns, 2);
+  EXPECT_EQ(p.moves[2].tolerance_mm, 0.01);
+  EXPECT_EQ(p.moves[3].kind, GcodeMove::Kind::kNurbs);
+  EXPECT_TRUE(p.moves[3].rest_before);
+  EXPECT_EQ(p.moves[3].nurbs->poles.size(), 3u);
+  ASSERT_EQ(p.notes.size(), 2u);
+  for (const auto& [record, message] : std::vector<std::pair<std::string, std::string>>{
+           {"L 3 1 2\nX\n", "expected 6 numbers"},
+           {"Z 1\nX\n", "unknown record"},
+           {"F 1 100\nL 2 1 2 3 0 0 0\n", "ended before the program's end"},
+           {"F 1 100\nA 2 1 0 0 0 0 0 0 0 2 1 0 0 0\nX\n", "not a unit"},
+           {"F 1 100\nN 2 4 0 0 0 0 2 0 0 1 1 1 1\nX\n", "at least as many control points"},
+           {"L 2 1 0 0 0 0 0\nX\n", "p.ngc:2: a feed move with no feed rate"},
+           {"E 9 Arc radius too small\n", "p.ngc:9: Arc radius too small"},
+           {"L x\n", "no line number"}}) {
+    test::ExpectError([&] { ParseRs274Records(record, "p.ngc"); }, message);
+  }
 }
 
 }  // namespace

@@ -81,6 +81,16 @@ GcodeInterpreter DefaultGcodeInterpreter() {
 #endif
 }
 
+GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name) {
+  Rs274Reader reader(records, source_name);
+  GcodeProgram program;
+  program.file = source_name;
+  while (auto move = reader.Next()) program.moves.push_back(*move);
+  program.uses_rotary = reader.UsesRotary();
+  program.notes = reader.Notes();
+  return program;
+}
+
 const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
   return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
 }
@@ -124,6 +134,29 @@ Rs274Reader::Rs274Reader(const std::string& path) : file_(path) {
     Reap();
     throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
   }
+}
+
+Rs274Reader::Rs274Reader(std::string_view records, const std::string& name)
+    : file_(name), text_(records) {}
+
+bool Rs274Reader::NextRecord() {
+  record_.clear();
+  if (text_) {
+    if (text_->empty()) return false;
+    const std::size_t end = text_->find('\n');
+    record_ = std::string(text_->substr(0, end));
+    text_->remove_prefix(end == std::string_view::npos ? text_->size() : end + 1);
+    return true;
+  }
+  char buffer[4096];
+  bool got = false;
+  while (std::fgets(buffer, sizeof buffer, out_) != nullptr) {
+    got = true;
+    record_ += buffer;
+    if (record_.back() == '\n') break;
+  }
+  if (!record_.empty() && record_.back() == '\n') record_.pop_back();
+  return got;
 }
 
 Rs274Reader::~Rs274Reader() {
@@ -180,17 +213,8 @@ void Rs274Reader::Note(const std::string& what) {
 }
 
 std::optional<GcodeMove> Rs274Reader::Next() {
-  char buffer[4096];
   while (!ended_) {
-    record_.clear();
-    bool got = false;
-    while (std::fgets(buffer, sizeof buffer, out_) != nullptr) {
-      got = true;
-      record_ += buffer;
-      if (!record_.empty() && record_.back() == '\n') break;
-    }
-    if (!got) BadRecord("the output ended before the program's end");
-    if (!record_.empty() && record_.back() == '\n') record_.pop_back();
+    if (!NextRecord()) BadRecord("the output ended before the program's end");
     ++records_;
     if (record_ == "X") {
       ended_ = true;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -24,6 +25,8 @@ class Rs274Reader {
   // Starts the interpreter on the file at `path`. Throws dtis::Error when the file cannot be read
   // or dtis-rs274 cannot be started.
   explicit Rs274Reader(const std::string& path);
+  // Reads records already written (`records` must outlive the reader); `name` names the program.
+  Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running
   Rs274Reader(const Rs274Reader&) = delete;
   Rs274Reader& operator=(const Rs274Reader&) = delete;
@@ -41,10 +44,13 @@ class Rs274Reader {
   void Note(const std::string& what);
   // Waits for the interpreter to exit; a message when it did not exit as it should.
   std::string Reap();
+  // The next record into record_; false at the end of the output.
+  bool NextRecord();
 
   std::string file_;
   pid_t pid_ = -1;
   std::FILE* out_ = nullptr;
+  std::optional<std::string_view> text_;  // records given as text, what is left of them
   std::string record_;
   long records_ = 0;
   bool ended_ = false;

@@ -108,5 +108,8 @@ class GcodeReader {
 GcodeProgram ReadGcode(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis);
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name);
+// The records dtis-rs274 writes (tools/rs274/dtis_rs274.cpp), as they would be read from it: for
+// tests and the fuzz target. Throws dtis::Error on the interpreter's error or a bad record.
+GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name);
 
 }  // namespace dtis::io
