@@ -114,21 +114,24 @@ file = "bad.ngc"
 interpreter = "dtis"
 JOB
 sed '/^interpreter/d' "$work/gcode_dtis.toml" > "$work/gcode.toml"
-printf 'G0 X0 Y0\nG1 X10 F600\nG2 X20 Y0\nM2\n' > "$work/bad.ngc"
-expect gcode-arc "bad.ngc:3:1: an arc (G2/G3) needs I and/or J, or R" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
-[ "$rs274" = rs274 ] && expect gcode-arc-rs274 "bad.ngc:3: R i j k words all missing for arc" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F600 Q3\nM2\n' > "$work/bad.ngc"
-expect gcode-word "bad.ngc:2:13: word 'Q' is not supported" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
-[ "$rs274" = rs274 ] && expect gcode-word-rs274 "bad.ngc:2: Q word with no G5, G10, G64" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F0\nM2\n' > "$work/bad.ngc"
-expect gcode-feed "bad.ngc:2:8: feed F must be positive, got 0" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
-[ "$rs274" = rs274 ] && expect gcode-feed-rs274 "bad.ngc:2: Cannot do g1 with zero feed rate" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
-printf 'G0 X0 Y0\nG1 X10 F600 A5\nM2\n' > "$work/bad.ngc"
-expect gcode-rotary "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
-[ "$rs274" = rs274 ] && expect gcode-rotary-rs274 "bad.ngc: the program moves rotary axis A but machine" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+# gcode_case NAME PROGRAM DTIS_FRAGMENT RS274_FRAGMENT: the program read by dtis' own reader and,
+# when built, by LinuxCNC's interpreter (an empty fragment: not checked with that reader).
+gcode_case() {
+  printf '%b' "$2" > "$work/bad.ngc"
+  [ -z "$3" ] || expect "$1" "$3" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+  [ "$rs274" != rs274 ] || [ -z "$4" ] || expect "$1-rs274" "$4" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+}
+gcode_case gcode-arc 'G0 X0 Y0\nG1 X10 F600\nG2 X20 Y0\nM2\n' \
+  "bad.ngc:3:1: an arc (G2/G3) needs I and/or J, or R" "bad.ngc:3: R i j k words all missing for arc"
+gcode_case gcode-word 'G0 X0 Y0\nG1 X10 F600 Q3\nM2\n' \
+  "bad.ngc:2:13: word 'Q' is not supported" "bad.ngc:2: Q word with no G5, G10, G64"
+gcode_case gcode-feed 'G0 X0 Y0\nG1 X10 F0\nM2\n' \
+  "bad.ngc:2:8: feed F must be positive, got 0" "bad.ngc:2: Cannot do g1 with zero feed rate"
+gcode_case gcode-rotary 'G0 X0 Y0\nG1 X10 F600 A5\nM2\n' \
+  "bad.ngc: the program moves rotary axis A but machine" "bad.ngc: the program moves rotary axis A but machine"
 # As LinuxCNC, its interpreter wants a program's end (M2, M30 or a closing %).
-printf 'G0 X0 Y0\nG1 X10 F600\n' > "$work/bad.ngc"
-[ "$rs274" = rs274 ] && expect gcode-end-rs274 "bad.ngc:2: File ended with no percent sign or program end" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+gcode_case gcode-end 'G0 X0 Y0\nG1 X10 F600\n' "" \
+  "bad.ngc:2: File ended with no percent sign or program end"
 
 # --planner: one of the two, and only for the VPOp interpolator.
 expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"

@@ -330,7 +330,9 @@ std::optional<GcodeMove> GcodeReader::Next() {
 
 namespace {
 
-GcodeProgram ReadAll(GcodeReader& reader) {
+// `Reader`: a GcodeReader or an Rs274Reader.
+template <typename Reader>
+GcodeProgram ReadAll(Reader& reader) {
   GcodeProgram program;
   program.file = reader.File();
   while (auto move = reader.Next()) program.moves.push_back(*move);
@@ -343,6 +345,11 @@ GcodeProgram ReadAll(GcodeReader& reader) {
 
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
   GcodeReader reader(text, source_name);
+  return ReadAll(reader);
+}
+
+GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name) {
+  Rs274Reader reader(records, source_name);
   return ReadAll(reader);
 }
 

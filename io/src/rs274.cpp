@@ -81,16 +81,6 @@ GcodeInterpreter DefaultGcodeInterpreter() {
 #endif
 }
 
-GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name) {
-  Rs274Reader reader(records, source_name);
-  GcodeProgram program;
-  program.file = source_name;
-  while (auto move = reader.Next()) program.moves.push_back(*move);
-  program.uses_rotary = reader.UsesRotary();
-  program.notes = reader.Notes();
-  return program;
-}
-
 const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
   return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
 }
@@ -105,7 +95,7 @@ Rs274Reader::Rs274Reader(const std::string& path) : file_(path) {
     throw Error(
         "{}: LinuxCNC's G-code interpreter (the dtis-rs274 program) was not found next to dtis; "
         "build dtis with linuxcnc-uspace-dev installed, set DTIS_RS274 to the program, or read "
-        "the program with dtis' own reader (interpreter = \"dtis\" in the job's [gcode])",
+        "the program with dtis' own reader (interpreter = \"dtis\" in the job's [path])",
         path);
   }
   int pipe_fds[2];
@@ -212,6 +202,26 @@ void Rs274Reader::Note(const std::string& what) {
   notes_.emplace_back(what, 1);
 }
 
+GcodeMove Rs274Reader::Move(int line, GcodeMove::Kind kind, const double* abc) {
+  GcodeMove m;
+  m.line = line;
+  m.kind = kind;
+  for (std::size_t k = 0; k < 3; ++k) {
+    m.rotary[k] = abc[k];
+    if (abc[k] != 0.0) uses_rotary_[k] = true;
+  }
+  if (kind != GcodeMove::Kind::kRapid) {
+    if (!(feed_mm_min_ > 0.0)) {
+      Fail(line, "a feed move with no feed rate (program an F word before it)");
+    }
+    m.feed_mm_min = feed_mm_min_;
+  }
+  m.tolerance_mm = tolerance_mm_;
+  m.stop = stop_;
+  m.rest_before = std::exchange(rest_next_, false);
+  return m;
+}
+
 std::optional<GcodeMove> Rs274Reader::Next() {
   while (!ended_) {
     if (!NextRecord()) BadRecord("the output ended before the program's end");
@@ -263,27 +273,14 @@ std::optional<GcodeMove> Rs274Reader::Next() {
       case 'T':
       case 'L':
       case 'A': {
-        GcodeMove m;
-        m.line = static_cast<int>(line);
         double p[13];
         const int n = kind == 'A' ? 13 : 6;
         numbers(p, n);
         if (!f.Done()) BadRecord("trailing fields");
+        GcodeMove m =
+            Move(static_cast<int>(line),
+                 kind == 'T' ? GcodeMove::Kind::kRapid : GcodeMove::Kind::kLinear, p + n - 3);
         m.to = Eigen::Vector3d(p[0], p[1], p[2]);
-        const double* abc = p + n - 3;
-        for (std::size_t k = 0; k < 3; ++k) {
-          m.rotary[k] = abc[k];
-          if (abc[k] != 0.0) uses_rotary_[k] = true;
-        }
-        if (kind == 'T') {
-          m.kind = GcodeMove::Kind::kRapid;
-        } else {
-          m.feed_mm_min = feed_mm_min_;
-          if (!(feed_mm_min_ > 0.0)) {
-            Fail(m.line, "a feed move with no feed rate (program an F word before it)");
-          }
-          m.kind = GcodeMove::Kind::kLinear;
-        }
         if (kind == 'A') {
           m.center = Eigen::Vector3d(p[3], p[4], p[5]);
           m.normal = Eigen::Vector3d(p[6], p[7], p[8]);
@@ -295,9 +292,6 @@ std::optional<GcodeMove> Rs274Reader::Next() {
           m.kind = turns > 0.0 ? GcodeMove::Kind::kArcCcw : GcodeMove::Kind::kArcCw;
           m.turns = static_cast<int>(std::abs(turns));
         }
-        m.tolerance_mm = tolerance_mm_;
-        m.stop = stop_;
-        m.rest_before = std::exchange(rest_next_, false);
         return m;
       }
       case 'N': {
@@ -319,22 +313,9 @@ std::optional<GcodeMove> Rs274Reader::Next() {
           nurbs->weights.push_back(p[2]);
         }
         if (!f.Done()) BadRecord("trailing fields");
-        GcodeMove m;
-        m.line = static_cast<int>(line);
-        m.kind = GcodeMove::Kind::kNurbs;
+        GcodeMove m = Move(static_cast<int>(line), GcodeMove::Kind::kNurbs, head + 2);
         m.to = nurbs->poles.back();
-        for (std::size_t k = 0; k < 3; ++k) {
-          m.rotary[k] = head[2 + k];
-          if (head[2 + k] != 0.0) uses_rotary_[k] = true;
-        }
-        m.feed_mm_min = feed_mm_min_;
-        if (!(feed_mm_min_ > 0.0)) {
-          Fail(m.line, "a feed move with no feed rate (program an F word before it)");
-        }
         m.nurbs = std::move(nurbs);
-        m.tolerance_mm = tolerance_mm_;
-        m.stop = stop_;
-        m.rest_before = std::exchange(rest_next_, false);
         return m;
       }
       default:

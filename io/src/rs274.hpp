@@ -42,6 +42,9 @@ class Rs274Reader {
   [[noreturn]] void Fail(int line, const std::string& what);
   [[noreturn]] void BadRecord(const std::string& why);
   void Note(const std::string& what);
+  // A move of `kind` from record `line` with rotary positions `abc`, carrying what the records
+  // before it set (feed, path control, a dwell).
+  GcodeMove Move(int line, GcodeMove::Kind kind, const double* abc);
   // Waits for the interpreter to exit; a message when it did not exit as it should.
   std::string Reap();
   // The next record into record_; false at the end of the output.
