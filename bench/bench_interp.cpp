@@ -62,7 +62,7 @@ void ReportPlanning(benchmark::State& state, long setpoints, double motion,
 void Plan(benchmark::State& state, const char* job_file, PlannerKind planner) {
   auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   const auto path = dtis::io::BuildPath(job);
   long setpoints = 0;
   double motion = 0.0;
@@ -131,7 +131,7 @@ void Surface(benchmark::State& state, const char* job_file) {
 //   build/bench/dtis_bench --benchmark_filter=SurfacePlan/
 void SurfacePlan(benchmark::State& state, const char* job_file) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   const auto setup = dtis::io::SetUpSurface(job);
   std::vector<const dtis::PathSource*> passes;
   for (const auto& pass : setup.passes.passes) passes.push_back(pass.get());
@@ -151,7 +151,7 @@ void SurfacePlan(benchmark::State& state, const char* job_file) {
 void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind planner) {
   auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   const auto setup = dtis::io::SetUpSurface(job);
   std::vector<const dtis::PathSource*> passes;
   for (const auto& pass : setup.passes.passes) passes.push_back(pass.get());
@@ -230,7 +230,7 @@ BENCHMARK(GcodeRead)->Unit(benchmark::kMillisecond);
 //   build/bench/dtis_bench --benchmark_filter=GcodePlan
 void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
                  const dtis::io::Job& job) {
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   long setpoints = 0;
   double motion = 0.0;
   dtis::interp::VpopSummary last;
@@ -300,7 +300,7 @@ BENCHMARK(GcodePlanPolygon)->Unit(benchmark::kMillisecond)->Iterations(1);
 //   build/bench/dtis_bench --benchmark_filter=GcodeLoad1M
 void GcodeLoad1M(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   std::string text = "G21 G90 G17\nG0 X0 Y0 Z1\nG1 Z0 F3000\n";
   for (int row = 0, n = 0; n < 1000000; ++row) {
     for (int i = 0; i < 1000; ++i, ++n) {

@@ -239,7 +239,7 @@ int Compare(const CompareArgs& a) {
   if (!a.markdown.empty()) md.emplace(a.markdown).Write(dtis::io::FormatCompareMarkdown(result));
   if (!a.report.empty()) {
     // The comparison on top; below it, the exact-surface variant's full report.
-    const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+    const auto machine = dtis::io::LoadJobMachine(job);
     const dtis::io::VariantResult& exact =
         dtis::io::ExactVariantOf(result, options.planners.front());
     dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
@@ -384,7 +384,7 @@ int Stream(const StreamArgs& a) {
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   ApplyPlanner(a.planner, &job);
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
-  const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = dtis::io::LoadJobMachine(job);
   std::optional<dtis::AxisVector> from;
   if (!a.from.empty()) from = ParseAxisPositions(a.from, *machine);
   const auto segments = dtis::io::JobSegments(job, *machine, from);
@@ -458,10 +458,21 @@ int Stream(const StreamArgs& a) {
   return r.end == dtis::io::StreamEnd::kComplete ? 0 : kExitStreamEndedEarly;
 }
 
+// --jerk-time-ms: for LinuxCNC INI machines without MAX_JERK (0: not given).
+dtis::kinematics::MachineLoadOptions JerkTime(double ms) {
+  dtis::kinematics::MachineLoadOptions o;
+  if (ms > 0.0) o.jerk_time_s = ms * 1e-3;
+  return o;
+}
+
+constexpr const char* kJerkTimeHelp =
+    "for a LinuxCNC INI without MAX_JERK: each axis' jerk = MAX_ACCELERATION / this time (ms)";
+
 struct ServeArgs {
   std::string socket, machine, to = "-", record_dir, pace = "realtime", from, planner;
   long buffer = 200, low_water = 20;
   bool index = false;
+  double jerk_time_ms = 0.0;
 };
 
 std::string DefaultSocket() {
@@ -480,7 +491,8 @@ int Serve(const ServeArgs& a) {
   o.stream.buffer_periods = a.buffer;
   o.stream.low_water_periods = a.low_water;
   o.stream.realtime = a.pace == "realtime";
-  const auto machine = dtis::kinematics::LoadMachineFile(a.machine);
+  o.machine_options = JerkTime(a.jerk_time_ms);
+  const auto machine = dtis::kinematics::LoadMachineFile(a.machine, o.machine_options);
   if (!a.from.empty()) o.from = ParseAxisPositions(a.from, *machine);
   if (!a.planner.empty()) o.planner = dtis::interp::PlannerFromName(a.planner);
   if (!a.record_dir.empty()) std::filesystem::create_directories(a.record_dir);
@@ -494,8 +506,22 @@ int Serve(const ServeArgs& a) {
   return 0;
 }
 
-int Verify(const std::string& setpoints, const std::string& machine_file) {
-  const auto machine = dtis::kinematics::LoadMachineFile(machine_file);
+// `dtis machine import`: a LinuxCNC INI (or a machine file) written out as a machine file.
+int ImportMachine(const std::string& from, const std::string& output, double jerk_time_ms) {
+  const auto d = dtis::kinematics::ReadMachineDescription(from, JerkTime(jerk_time_ms));
+  dtis::kinematics::BuildMachine(d);  // checks it as a run would
+  std::string text = fmt::format("# Imported by dtis {} from {}\n", dtis::kVersion, from);
+  text += dtis::kinematics::FormatMachineFile(d);
+  if (output.empty() || output == "-") {
+    std::fputs(text.c_str(), stdout);
+  } else {
+    dtis::io::WriteFileAtomically(output, text);
+  }
+  return 0;
+}
+
+int Verify(const std::string& setpoints, const std::string& machine_file, double jerk_time_ms) {
+  const auto machine = dtis::kinematics::LoadMachineFile(machine_file, JerkTime(jerk_time_ms));
   const auto table = dtis::io::ReadSetpoints(setpoints);
   const auto report = dtis::interp::Verify(table, *machine);
   std::fputs(dtis::interp::FormatReport(report).c_str(), stdout);
@@ -504,6 +530,7 @@ int Verify(const std::string& setpoints, const std::string& machine_file) {
 
 struct ReportArgs {
   std::string setpoints, machine, output, job, limiters;
+  double jerk_time_ms = 0.0;
 };
 
 int Report(const ReportArgs& a) {
@@ -514,8 +541,9 @@ int Report(const ReportArgs& a) {
     throw dtis::Error("report {}: give the MACHINE file, or --job for the job's machine",
                       a.setpoints);
   }
-  const auto machine =
-      dtis::kinematics::LoadMachineFile(a.machine.empty() ? job->machine_file : a.machine);
+  const auto machine = a.machine.empty()
+                           ? dtis::io::LoadJobMachine(*job)
+                           : dtis::kinematics::LoadMachineFile(a.machine, JerkTime(a.jerk_time_ms));
   const auto table = dtis::io::ReadSetpoints(a.setpoints);
   std::vector<dtis::interp::LimiterId> limiters;
   if (!a.limiters.empty()) {
@@ -645,8 +673,26 @@ int main(int argc, char** argv) {
       "differences) as a ratio to its limit, the motion time, and rest at both ends. Exit 0 when "
       "every ratio is <= 1 and the sequence starts and ends at rest, 3 otherwise.");
   std::string setpoints, machine;
+  double verify_jerk_time_ms = 0.0;
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
-  verify->add_option("MACHINE", machine, "machine file (see samples/machines/)")->required();
+  verify->add_option("MACHINE", machine, "machine file (see samples/machines/) or LinuxCNC INI")
+      ->required();
+  verify->add_option("--jerk-time-ms", verify_jerk_time_ms, kJerkTimeHelp)
+      ->check(CLI::PositiveNumber);
+
+  auto* machine_cmd =
+      app.add_subcommand("machine", "Machines: import a LinuxCNC INI file as a dtis machine file.");
+  machine_cmd->require_subcommand(1);
+  auto* import = machine_cmd->add_subcommand(
+      "import",
+      "Read a LinuxCNC INI file (KINEMATICS, COORDINATES, units, [JOINT_n]/[AXIS_L] limits, the "
+      "kinematics' pivot pins from its HAL files) and write it as a machine file in mm, s, deg.");
+  std::string import_from, import_output;
+  double import_jerk_time_ms = 0.0;
+  import->add_option("INI", import_from, "LinuxCNC INI file (or a machine file)")->required();
+  import->add_option("-o,--output", import_output, "machine file to write (default: stdout)");
+  import->add_option("--jerk-time-ms", import_jerk_time_ms, kJerkTimeHelp)
+      ->check(CLI::PositiveNumber);
 
   auto* report = app.add_subcommand(
       "report",
@@ -658,6 +704,7 @@ int main(int argc, char** argv) {
   ReportArgs ra;
   report->add_option("FILE", ra.setpoints, "setpoint CSV")->required();
   report->add_option("MACHINE", ra.machine, "machine file (default: the --job's)");
+  report->add_option("--jerk-time-ms", ra.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
   report->add_option("-o,--output", ra.output, "HTML file (default: FILE with .html)");
   report->add_option("--job", ra.job,
                      "the job the setpoints came from: its machine, programmed feed and, for a "
@@ -740,6 +787,7 @@ int main(int argc, char** argv) {
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
       ->required();
+  serve->add_option("--jerk-time-ms", va.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
   serve->add_option("--to", va.to, kStreamToHelp)->capture_default_str();
   serve->add_option("--buffer", va.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
@@ -780,7 +828,8 @@ int main(int argc, char** argv) {
     if (*run) return Run(ra_run);
     if (*faces) return Faces(step_file);
     if (*compare) return Compare(ca);
-    if (*verify) return Verify(setpoints, machine);
+    if (*verify) return Verify(setpoints, machine, verify_jerk_time_ms);
+    if (*import) return ImportMachine(import_from, import_output, import_jerk_time_ms);
     if (*stream) return Stream(sa);
     if (*serve) return Serve(va);
     if (*send) {

@@ -20,6 +20,7 @@ namespace {
 #define DTIS_PARSER_gcode 5
 #define DTIS_PARSER_limiters 6
 #define DTIS_PARSER_rs274 7
+#define DTIS_PARSER_machine_ini 8
 #define DTIS_CAT(a, b) a##b
 #define DTIS_SELECT(x) DTIS_CAT(DTIS_PARSER_, x)
 #define DTIS_PARSER DTIS_SELECT(DTIS_FUZZ_PARSER)
@@ -31,6 +32,10 @@ void Parse(std::string_view text) {
   dtis::io::ParseCurveFile(text, "fuzz.toml");
 #elif DTIS_PARSER == DTIS_PARSER_machine
   dtis::kinematics::ParseMachine(text, "fuzz.toml");
+#elif DTIS_PARSER == DTIS_PARSER_machine_ini
+  dtis::kinematics::MachineLoadOptions o;
+  o.jerk_time_s = 0.02;
+  dtis::kinematics::BuildMachine(dtis::kinematics::ParseLinuxcncIni(text, "fuzz.ini", o));
 #elif DTIS_PARSER == DTIS_PARSER_setpoints
   dtis::io::ParseSetpoints(text, "fuzz.csv");
 #elif DTIS_PARSER == DTIS_PARSER_gcode
@@ -40,7 +45,8 @@ void Parse(std::string_view text) {
 #elif DTIS_PARSER == DTIS_PARSER_limiters
   dtis::io::ParseLimiters(text, "fuzz.csv", {"X", "Y", "Z", "A", "C"});
 #else
-#error "DTIS_FUZZ_PARSER must be job, curve, machine, setpoints, limiters, gcode or rs274"
+#error \
+    "DTIS_FUZZ_PARSER must be job, curve, machine, machine_ini, setpoints, limiters, gcode or rs274"
 #endif
 }
 

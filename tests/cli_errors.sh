@@ -161,6 +161,51 @@ expect stream-hal-channel "--to hal:x: expected hal:N, N the streamer channel 0.
 expect report-no-plotly "cannot read plotly.js for the HTML report from '$work/no-plotly.js'" -- env DTIS_PLOTLY_JS="$work/no-plotly.js" "$dtis" run "$work/line.toml" -o "$work/out.csv" --report "$work/out.html"
 
 
+# LinuxCNC INI machines: a missing jerk names the joint, the axis and the key that supplies it; an
+# unknown kinematics module names the INI line; the jerk time is only for INI machines.
+cat > "$work/mill.ini" <<INI
+[KINS]
+KINEMATICS = trivkins
+[TRAJ]
+COORDINATES = X Y Z
+LINEAR_UNITS = inch
+[JOINT_0]
+MIN_LIMIT = -10
+MAX_LIMIT = 10
+MAX_VELOCITY = 4
+MAX_ACCELERATION = 50
+[JOINT_1]
+MIN_LIMIT = -10
+MAX_LIMIT = 10
+MAX_VELOCITY = 4
+MAX_ACCELERATION = 50
+[JOINT_2]
+MIN_LIMIT = -8
+MAX_LIMIT = 0.12
+MAX_VELOCITY = 2
+MAX_ACCELERATION = 30
+INI
+sed 's|^machine = .*|machine = "mill.ini"|' "$work/line.toml" > "$work/ini_job.toml"
+expect ini-no-jerk "mill.ini: neither [JOINT_0] nor [AXIS_X] gives MAX_JERK; give the job key machine_jerk_time_ms" -- "$dtis" run "$work/ini_job.toml" -o "$work/out.csv"
+expect import-no-jerk "mill.ini: neither [JOINT_0] nor [AXIS_X] gives MAX_JERK" -- "$dtis" machine import "$work/mill.ini" -o "$work/out.toml"
+sed 's/trivkins/genhexkins/' "$work/mill.ini" > "$work/hex.ini"
+expect import-kins "hex.ini:2: [KINS] KINEMATICS: kinematics 'genhexkins' is not one dtis models" -- "$dtis" machine import "$work/hex.ini" --jerk-time-ms 20 -o "$work/out.toml"
+printf 'machine_jerk_time_ms = 20\n' | cat - "$work/line.toml" > "$work/toml_jerk.toml"
+expect jerk-time-toml "toml_jerk.toml:1: key 'machine_jerk_time_ms': only used with a LinuxCNC INI machine" -- "$dtis" run "$work/toml_jerk.toml" -o "$work/out.csv"
+expect_usage import-jerk-negative "--jerk-time-ms" -- "$dtis" machine import "$work/mill.ini" --jerk-time-ms -5 -o "$work/out.toml"
+# The same machine with the jerk time: it plans, verifies against the INI, and imports to a file
+# that verifies the same setpoints.
+printf 'machine_jerk_time_ms = 20\n' | cat - "$work/ini_job.toml" > "$work/ini_ok.toml"
+checks=$((checks + 1))
+if "$dtis" run "$work/ini_ok.toml" -o "$work/ini.csv" -q &&
+  "$dtis" verify "$work/ini.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null &&
+  "$dtis" machine import "$work/mill.ini" --jerk-time-ms 20 -o "$work/mill.toml" &&
+  "$dtis" verify "$work/ini.csv" "$work/mill.toml" >/dev/null; then
+  echo "ok ini-machine-plans"
+else
+  echo "FAIL ini-machine-plans"; failures=$((failures + 1))
+fi
+
 # Reports: a limiter report of another run, or a malformed one, names the file and line; a report
 # needs a machine; figures name the report, the format or the browser that failed.
 "$dtis" run "$work/line.toml" -o "$work/line.csv" --limiters "$work/line_lim.csv" -q

@@ -385,7 +385,7 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   static_cast<std::size_t>(options.threads));
   }
-  const auto machine = kinematics::LoadMachineFile(job.machine_file);
+  const auto machine = LoadJobMachine(job);
   const CompareSpec& spec = job.compare;
   // Each planner plans from a copy of the job and of the passes' options that names it.
   Job planned = job;

@@ -250,6 +250,13 @@ Job ReadJob(TomlTable& root) {
   job.file = root.File();
   job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
+  if (auto t = root.OptionalPositiveNumber("machine_jerk_time_ms")) {
+    if (std::filesystem::path(job.machine_file).extension() != ".ini") {
+      root.Fail("machine_jerk_time_ms",
+                "only used with a LinuxCNC INI machine; a machine file states every jerk");
+    }
+    job.machine_options.jerk_time_s = *t * 1e-3;
+  }
   const double period_ms = root.OptionalPositiveNumber("period_ms").value_or(1.0);
   if (period_ms < kMinPeriodMs || period_ms > kMaxPeriodMs) {
     root.Fail("period_ms", fmt::format("expected a period from {} to {} ms, got {}", kMinPeriodMs,
@@ -364,6 +371,10 @@ void RejectWhatIsNotAJob(const std::string& path) {
 Job ParseJob(std::string_view text, const std::string& source_name) {
   TomlTable root = TomlTable::ParseString(text, source_name);
   return ReadJob(root);
+}
+
+std::unique_ptr<Machine> LoadJobMachine(const Job& job) {
+  return kinematics::LoadMachineFile(job.machine_file, job.machine_options);
 }
 
 Job LoadJob(const std::string& path) {
@@ -667,7 +678,7 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
 
 RunResult RunJob(const Job& job, const RunOptions& options) {
   RunResult r;
-  r.machine = kinematics::LoadMachineFile(job.machine_file);
+  r.machine = LoadJobMachine(job);
   ProgressMeter meter(options);
   if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
     const auto start = std::chrono::steady_clock::now();

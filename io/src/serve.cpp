@@ -41,7 +41,7 @@ struct Finished {
 class Daemon {
  public:
   Daemon(const ServeOptions& o, CncOutput& out)
-      : o_(o), out_(out), machine_(kinematics::LoadMachineFile(o.machine_file)), at_(o.from) {}
+      : o_(o), out_(out), machine_(kinematics::LoadMachineFile(o.machine_file, o.machine_options)), at_(o.from) {}
 
   // Handles one request line; never throws.
   std::string Respond(const std::string& line) {

@@ -1,9 +1,12 @@
-// Machine files: TOML with the units stated in the file, converted to mm, s, rad on reading.
+// Machine files: TOML with the units stated in the file, converted to mm, s, rad on reading; a
+// path ending in .ini is read as a LinuxCNC INI file (linuxcnc_ini.cpp).
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 #include "dtis/core/toml_reader.hpp"
 #include "dtis/kinematics/machines.hpp"
 
@@ -40,9 +43,11 @@ Units ReadUnits(TomlTable& t, bool rotary_axes) {
                             {"mm/min", 1.0 / 60.0},
                             {"m/s", 1000.0},
                             {"m/min", 1000.0 / 60.0},
+                            {"in/s", 25.4},
                             {"in/min", 25.4 / 60.0}});
-  u.linear_acceleration = Unit(t, "linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}});
-  u.linear_jerk = Unit(t, "linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}});
+  u.linear_acceleration =
+      Unit(t, "linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}, {"in/s^2", 25.4}});
+  u.linear_jerk = Unit(t, "linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}, {"in/s^3", 25.4}});
   u.rotary_velocity = rotary("rotary_velocity", {{"rad/s", 1.0},
                                                  {"deg/s", kPi / 180.0},
                                                  {"rpm", 2.0 * kPi / 60.0},
@@ -88,40 +93,143 @@ Axis ReadAxis(TomlTable& axes, const std::string& name, bool rotary, const Units
   return a;
 }
 
-std::unique_ptr<Machine> ReadMachine(TomlTable& root) {
-  const std::string name = root.String("name");
-  const std::string kinematics = root.Choice("kinematics", {"xyz", "xyzac"});
+struct KinematicsChoice {
+  const char* name;
+  Kinematics kinematics;
+};
+// "xyzac" is the name machine files used before the table-tilting B machine existed.
+constexpr KinematicsChoice kKinematics[] = {
+    {"xyz", Kinematics::kXyz},
+    {"xyzac", Kinematics::kXyzacTrt},
+    {"xyzac-trt", Kinematics::kXyzacTrt},
+    {"xyzbc-trt", Kinematics::kXyzbcTrt},
+    {"xyzac-head-table", Kinematics::kXyzacHeadTable},
+    {"xyzbc-head-table", Kinematics::kXyzbcHeadTable},
+};
+
+bool IsHeadTable(Kinematics k) {
+  return k == Kinematics::kXyzacHeadTable || k == Kinematics::kXyzbcHeadTable;
+}
+
+const char* TiltLetter(Kinematics k) {
+  return k == Kinematics::kXyzbcTrt || k == Kinematics::kXyzbcHeadTable ? "B" : "A";
+}
+
+MachineDescription ReadMachine(TomlTable& root) {
+  MachineDescription d;
+  d.name = root.String("name");
+  std::vector<std::string> names;
+  for (const auto& k : kKinematics) names.emplace_back(k.name);
+  const std::string kinematics = root.Choice("kinematics", names);
+  for (const auto& k : kKinematics) {
+    if (kinematics == k.name) d.kinematics = k.kinematics;
+  }
+  const bool five_axis = d.kinematics != Kinematics::kXyz;
   TomlTable units_table = root.Table("units");
-  const Units units = ReadUnits(units_table, kinematics != "xyz");
+  const Units units = ReadUnits(units_table, five_axis);
   TomlTable axes_table = root.Table("axes");
-  std::vector<Axis> axes;
-  for (const char* n : {"X", "Y", "Z"}) axes.push_back(ReadAxis(axes_table, n, false, units));
-  KinematicsOptions options;
-  if (kinematics == "xyz") {
+  for (const char* n : {"X", "Y", "Z"}) d.axes.push_back(ReadAxis(axes_table, n, false, units));
+  if (!five_axis) {
     axes_table.RejectUnknown();
     root.RejectUnknown();
-    return std::make_unique<XyzMachine>(name, std::move(axes), options);
+    return d;
   }
-  for (const char* n : {"A", "C"}) axes.push_back(ReadAxis(axes_table, n, true, units));
+  const std::string tilt = TiltLetter(d.kinematics);
+  for (const std::string& n : {tilt, std::string("C")}) {
+    d.axes.push_back(ReadAxis(axes_table, n, true, units));
+  }
   axes_table.RejectUnknown();
   TomlTable pivot = root.Table("pivot");
-  const Eigen::Vector3d a_pivot = pivot.Point("a_axis") * units.length;
-  const Eigen::Vector3d c_pivot = pivot.Point("c_axis") * units.length;
+  d.c_pivot = pivot.Point("c_axis") * units.length;
+  if (IsHeadTable(d.kinematics)) {
+    const double length = pivot.Number("head_length");
+    if (!(length >= 0.0)) pivot.Fail("head_length", "expected a length >= 0");
+    d.head_length_mm = length * units.length;
+    if (auto directions = root.OptionalTable("directions")) {
+      const auto direction = [&](const std::string& axis) {
+        const auto v = directions->OptionalNumber(axis);
+        if (v && *v != 1.0 && *v != -1.0) directions->Fail(axis, "expected 1 or -1");
+        return v.value_or(1.0);
+      };
+      d.head_direction = direction(tilt);
+      d.c_direction = direction("C");
+      directions->RejectUnknown();
+    }
+  } else {
+    d.tilt_pivot = pivot.Point(fmt::format("{}_axis", tilt == "A" ? "a" : "b")) * units.length;
+  }
   pivot.RejectUnknown();
   root.RejectUnknown();
-  return std::make_unique<XyzacMachine>(name, std::move(axes), a_pivot, c_pivot, options);
+  return d;
+}
+
+bool IsIni(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  return ext == ".ini" || ext == ".INI";
+}
+
+std::string Number(double v) { return fmt::format("{:.15g}", v); }
+
+std::string Point(const Eigen::Vector3d& p) {
+  return fmt::format("[{}, {}, {}]", Number(p.x()), Number(p.y()), Number(p.z()));
 }
 
 }  // namespace
 
-std::unique_ptr<Machine> ParseMachine(std::string_view text, const std::string& source_name) {
+MachineDescription ParseMachineDescription(std::string_view text, const std::string& source_name) {
   TomlTable root = TomlTable::ParseString(text, source_name);
   return ReadMachine(root);
 }
 
-std::unique_ptr<Machine> LoadMachineFile(const std::string& path) {
+std::unique_ptr<Machine> ParseMachine(std::string_view text, const std::string& source_name) {
+  return BuildMachine(ParseMachineDescription(text, source_name));
+}
+
+MachineDescription ReadMachineDescription(const std::string& path,
+                                          const MachineLoadOptions& options) {
+  if (IsIni(path)) {
+    const auto text = ReadFileText(path);
+    if (!text) throw Error("{}: cannot open the LinuxCNC INI file", path);
+    return ParseLinuxcncIni(*text, path, options);
+  }
   TomlTable root = TomlTable::ParseFile(path);
   return ReadMachine(root);
+}
+
+std::unique_ptr<Machine> LoadMachineFile(const std::string& path,
+                                         const MachineLoadOptions& options) {
+  return BuildMachine(ReadMachineDescription(path, options));
+}
+
+std::string FormatMachineFile(const MachineDescription& d) {
+  constexpr double kDeg = 180.0 / kPi;
+  std::string out =
+      fmt::format("name = \"{}\"\nkinematics = \"{}\"\n\n", d.name, KinematicsName(d.kinematics));
+  out +=
+      "[units]\nlength = \"mm\"\nangle = \"deg\"\nlinear_velocity = \"mm/s\"\n"
+      "linear_acceleration = \"mm/s^2\"\nlinear_jerk = \"mm/s^3\"\n"
+      "rotary_velocity = \"deg/s\"\nrotary_acceleration = \"deg/s^2\"\n"
+      "rotary_jerk = \"deg/s^3\"\n";
+  for (const Axis& a : d.axes) {
+    const double k = a.rotary ? kDeg : 1.0;
+    out += fmt::format("\n[axes.{}]\n", a.name);
+    out += a.continuous ? std::string("travel = \"continuous\"\n")
+                        : fmt::format("travel = [{}, {}]\n", Number(a.travel_min * k),
+                                      Number(a.travel_max * k));
+    out += fmt::format("velocity = {}\nacceleration = {}\njerk = {}\n", Number(a.vmax * k),
+                       Number(a.amax * k), Number(a.jmax * k));
+  }
+  if (d.kinematics == Kinematics::kXyz) return out;
+  out += fmt::format("\n[pivot]\nc_axis = {}\n", Point(d.c_pivot));
+  if (IsHeadTable(d.kinematics)) {
+    out += fmt::format("head_length = {}\n", Number(d.head_length_mm));
+    out += fmt::format("\n[directions]\n{} = {}\nC = {}\n", TiltLetter(d.kinematics),
+                       Number(d.head_direction), Number(d.c_direction));
+  } else {
+    out += fmt::format("{}_axis = {}\n", d.kinematics == Kinematics::kXyzbcTrt ? "b" : "a",
+                       Point(d.tilt_pivot));
+  }
+  return out;
 }
 
 }  // namespace dtis::kinematics

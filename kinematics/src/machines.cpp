@@ -4,10 +4,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "dtis/core/error.hpp"
+
 namespace dtis::kinematics {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+constexpr int kTilt = 3, kC = 4;  // indices of the tilting (or head) axis and C in q
 
 InverseResult CheckTravel(std::span<const Axis> axes, const AxisVector& q, int first, int last) {
   for (int i = first; i < last; ++i) {
@@ -37,7 +40,83 @@ double WithinTravel(const Axis& axis, double angle, double target) {
   return best;
 }
 
+Eigen::Matrix3d Rotation(bool about_y, double angle) {
+  return Eigen::AngleAxisd(angle, about_y ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX())
+      .toRotationMatrix();
+}
+
+Eigen::Matrix3d Rz(double angle) {
+  return Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+// The two rotary solutions for a tool axis (tilting axis, C), in axis values.
+struct Branch {
+  double tilt, c;
+};
+
+// Of the two branches, the one within travel nearest to the previous positions, with C unwrapped
+// to them; `tilt` is the angle between the tool axis and the C axis, where C is undefined near 0
+// and pi and keeps its previous value.
+InverseResult PickBranch(std::span<const Axis> axes, const KinematicsOptions& options, double tilt,
+                         Branch primary, Branch secondary, const AxisVector* previous,
+                         Branch* best) {
+  const Axis& axis_t = axes[kTilt];
+  const Axis& axis_c = axes[kC];
+  const double c_previous = previous ? (*previous)[kC] : 0.0;
+  const double t_previous = previous ? (*previous)[kTilt] : 0.0;
+  if (tilt <= options.singular_angle_rad || kPi - tilt <= options.singular_angle_rad) {
+    primary.c = c_previous;
+    secondary.c = c_previous;
+  }
+  double best_cost = INFINITY;
+  *best = {NAN, NAN};
+  InverseResult failure{InverseStatus::kOutOfTravel, kTilt, primary.tilt};
+  for (const Branch& k : {primary, secondary}) {
+    if (!axis_t.continuous && (k.tilt < axis_t.travel_min || k.tilt > axis_t.travel_max)) continue;
+    const double c = WithinTravel(axis_c, k.c, c_previous);
+    if (std::isnan(c)) {
+      failure = {InverseStatus::kOutOfTravel, kC, Nearest(k.c, c_previous)};
+      continue;
+    }
+    const double cost = std::abs(k.tilt - t_previous) + std::abs(c - c_previous);
+    if (cost < best_cost) {
+      best_cost = cost;
+      *best = {k.tilt, c};
+    }
+  }
+  if (std::isnan(best->tilt)) return failure;
+  if (previous) {
+    const bool c_jumps = std::abs(best->c - c_previous) > options.branch_jump_rad;
+    if (c_jumps || std::abs(best->tilt - t_previous) > options.branch_jump_rad) {
+      return {InverseStatus::kBranchJump, c_jumps ? kC : kTilt, c_jumps ? best->c : best->tilt};
+    }
+  }
+  return {};
+}
+
+double TiltFromC(const Eigen::Vector3d& n) { return std::atan2(std::hypot(n.x(), n.y()), n.z()); }
+
+bool TiltsAboutY(Kinematics k) {
+  return k == Kinematics::kXyzbcTrt || k == Kinematics::kXyzbcHeadTable;
+}
+
 }  // namespace
+
+const char* KinematicsName(Kinematics k) {
+  switch (k) {
+    case Kinematics::kXyz:
+      return "xyz";
+    case Kinematics::kXyzacTrt:
+      return "xyzac-trt";
+    case Kinematics::kXyzbcTrt:
+      return "xyzbc-trt";
+    case Kinematics::kXyzacHeadTable:
+      return "xyzac-head-table";
+    case Kinematics::kXyzbcHeadTable:
+      return "xyzbc-head-table";
+  }
+  return "?";
+}
 
 XyzMachine::XyzMachine(std::string name, std::vector<Axis> axes, const KinematicsOptions& options)
     : name_(std::move(name)), axes_(std::move(axes)), options_(options) {}
@@ -54,80 +133,89 @@ Pose XyzMachine::Forward(const AxisVector& q) const {
   return {Eigen::Vector3d(q[0], q[1], q[2]), Eigen::Vector3d::UnitZ()};
 }
 
-XyzacMachine::XyzacMachine(std::string name, std::vector<Axis> axes, const Eigen::Vector3d& a_pivot,
-                           const Eigen::Vector3d& c_pivot, const KinematicsOptions& options)
-    : name_(std::move(name)),
-      axes_(std::move(axes)),
-      a_pivot_(a_pivot),
-      c_pivot_(c_pivot),
-      options_(options) {}
-
-// The table rotations bring the tool axis n (workpiece frame) onto the spindle +Z:
-//   Rx(A) Rz(C) n = z  =>  C = atan2(nx, ny), A = atan2(hypot(nx, ny), nz)
-// or the other branch (-A, C + pi). A workpiece point p is then at
-//   m = a + Rx(A) (c + Rz(C) (p - c) - a)
-// in the machine frame, which is where the linear axes put the tool tip.
-InverseResult XyzacMachine::Inverse(const Pose& pose, const AxisVector* previous,
-                                    AxisVector* q) const {
-  const Eigen::Vector3d n = pose.axis.normalized();
-  const double r = std::hypot(n.x(), n.y());
-  const double tilt = std::atan2(r, n.z());
-  const Axis& axis_a = axes_[3];
-  const Axis& axis_c = axes_[4];
-  const double c_previous = previous ? (*previous)[4] : 0.0;
-  const double a_previous = previous ? (*previous)[3] : 0.0;
-
-  struct Candidate {
-    double a, c;
-  };
-  Candidate candidates[2];
-  if (tilt <= options_.singular_angle_rad || kPi - tilt <= options_.singular_angle_rad) {
-    // On the C axis: C is free, keep it.
-    candidates[0] = {tilt, c_previous};
-    candidates[1] = {-tilt, c_previous};
-  } else {
-    const double c = std::atan2(n.x(), n.y());
-    candidates[0] = {tilt, c};
-    candidates[1] = {-tilt, c + kPi};
+FiveAxisMachine::FiveAxisMachine(const MachineDescription& d)
+    : d_(d), tilts_about_y_(TiltsAboutY(d.kinematics)) {
+  if (d.axes.size() != 5) {
+    throw Error("machine '{}': {} needs 5 axes, has {}", d.name, KinematicsName(d.kinematics),
+                d.axes.size());
   }
-  double best_cost = INFINITY;
-  Candidate best{NAN, NAN};
-  InverseResult failure{InverseStatus::kOutOfTravel, 3, candidates[0].a};
-  for (const Candidate& k : candidates) {
-    if (!axis_a.continuous && (k.a < axis_a.travel_min || k.a > axis_a.travel_max)) continue;
-    const double c = WithinTravel(axis_c, k.c, c_previous);
-    if (std::isnan(c)) {
-      failure = {InverseStatus::kOutOfTravel, 4, Nearest(k.c, c_previous)};
-      continue;
-    }
-    const double cost = std::abs(k.a - a_previous) + std::abs(c - c_previous);
-    if (cost < best_cost) {
-      best_cost = cost;
-      best = {k.a, c};
-    }
+  if (std::abs(d.head_direction) != 1.0 || std::abs(d.c_direction) != 1.0) {
+    throw Error("machine '{}': axis directions are +1 or -1", d.name);
   }
-  if (std::isnan(best.a)) return failure;
-  if (previous && (std::abs(best.c - c_previous) > options_.branch_jump_rad ||
-                   std::abs(best.a - a_previous) > options_.branch_jump_rad)) {
-    const bool c_jumps = std::abs(best.c - c_previous) > options_.branch_jump_rad;
-    return {InverseStatus::kBranchJump, c_jumps ? 4 : 3, c_jumps ? best.c : best.a};
-  }
-  const Eigen::Matrix3d rx = Eigen::AngleAxisd(best.a, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Matrix3d rz = Eigen::AngleAxisd(best.c, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const Eigen::Vector3d m = a_pivot_ + rx * (c_pivot_ + rz * (pose.tip - c_pivot_) - a_pivot_);
-  q->resize(5);
-  *q << m.x(), m.y(), m.z(), best.a, best.c;
-  return CheckTravel(axes_, *q, 0, 3);
 }
 
-Pose XyzacMachine::Forward(const AxisVector& q) const {
-  const Eigen::Matrix3d rx = Eigen::AngleAxisd(q[3], Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Matrix3d rz = Eigen::AngleAxisd(q[4], Eigen::Vector3d::UnitZ()).toRotationMatrix();
+// R(T) Rz(C) n = z: Rz(C) n = R(T)^T z, which is (0, sin A, cos A) for A and (-sin B, 0, cos B)
+// for B; the other branch tilts the other way with C half a turn on.
+InverseResult TableTiltingMachine::Inverse(const Pose& pose, const AxisVector* previous,
+                                           AxisVector* q) const {
+  const Eigen::Vector3d n = pose.axis.normalized();
+  const double tilt = TiltFromC(n);
+  const double c = tilts_about_y_ ? std::atan2(n.y(), -n.x()) : std::atan2(n.x(), n.y());
+  Branch best;
+  const InverseResult r =
+      PickBranch(d_.axes, d_.options, tilt, {tilt, c}, {-tilt, c + kPi}, previous, &best);
+  if (r.status != InverseStatus::kOk) return r;
+  const Eigen::Vector3d m =
+      d_.tilt_pivot + Rotation(tilts_about_y_, best.tilt) *
+                          (d_.c_pivot + Rz(best.c) * (pose.tip - d_.c_pivot) - d_.tilt_pivot);
+  q->resize(5);
+  *q << m.x(), m.y(), m.z(), best.tilt, best.c;
+  return CheckTravel(d_.axes, *q, 0, 3);
+}
+
+Pose TableTiltingMachine::Forward(const AxisVector& q) const {
+  const Eigen::Matrix3d rt = Rotation(tilts_about_y_, q[kTilt]);
+  const Eigen::Matrix3d rz = Rz(q[kC]);
   const Eigen::Vector3d m(q[0], q[1], q[2]);
   Pose pose;
-  pose.tip = c_pivot_ + rz.transpose() * (rx.transpose() * (m - a_pivot_) + a_pivot_ - c_pivot_);
-  pose.axis = rz.transpose() * rx.transpose() * Eigen::Vector3d::UnitZ();
+  pose.tip = d_.c_pivot +
+             rz.transpose() * (rt.transpose() * (m - d_.tilt_pivot) + d_.tilt_pivot - d_.c_pivot);
+  pose.axis = rz.transpose() * rt.transpose() * Eigen::Vector3d::UnitZ();
   return pose;
+}
+
+// Rz(γ) n = R(β) z with γ = C·c_direction, β = H·head_direction: R(β) z is (sin β, 0, cos β)
+// about Y and (0, -sin β, cos β) about X.
+InverseResult HeadTableMachine::Inverse(const Pose& pose, const AxisVector* previous,
+                                        AxisVector* q) const {
+  const Eigen::Vector3d n = pose.axis.normalized();
+  const double tilt = TiltFromC(n);
+  const double gamma = tilts_about_y_ ? std::atan2(-n.y(), n.x()) : std::atan2(n.x(), n.y());
+  const double beta = tilts_about_y_ ? tilt : -tilt;
+  const double sh = d_.head_direction, sc = d_.c_direction;
+  Branch best;
+  const InverseResult r = PickBranch(d_.axes, d_.options, tilt, {sh * beta, sc * gamma},
+                                     {-sh * beta, sc * (gamma + kPi)}, previous, &best);
+  if (r.status != InverseStatus::kOk) return r;
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d w = Rotation(tilts_about_y_, sh * best.tilt) * z;
+  const Eigen::Vector3d m = d_.c_pivot + Rz(sc * best.c) * (pose.tip - d_.c_pivot);
+  const Eigen::Vector3d axes = m + d_.head_length_mm * (w - z);
+  q->resize(5);
+  *q << axes.x(), axes.y(), axes.z(), best.tilt, best.c;
+  return CheckTravel(d_.axes, *q, 0, 3);
+}
+
+Pose HeadTableMachine::Forward(const AxisVector& q) const {
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d w = Rotation(tilts_about_y_, d_.head_direction * q[kTilt]) * z;
+  const Eigen::Matrix3d rz = Rz(d_.c_direction * q[kC]);
+  const Eigen::Vector3d m = Eigen::Vector3d(q[0], q[1], q[2]) - d_.head_length_mm * (w - z);
+  return {d_.c_pivot + rz.transpose() * (m - d_.c_pivot), rz.transpose() * w};
+}
+
+std::unique_ptr<Machine> BuildMachine(const MachineDescription& d) {
+  switch (d.kinematics) {
+    case Kinematics::kXyz:
+      return std::make_unique<XyzMachine>(d.name, d.axes, d.options);
+    case Kinematics::kXyzacTrt:
+    case Kinematics::kXyzbcTrt:
+      return std::make_unique<TableTiltingMachine>(d);
+    case Kinematics::kXyzacHeadTable:
+    case Kinematics::kXyzbcHeadTable:
+      return std::make_unique<HeadTableMachine>(d);
+  }
+  throw Error("machine '{}': unknown kinematics", d.name);
 }
 
 }  // namespace dtis::kinematics

@@ -303,7 +303,7 @@ int main(int argc, char** argv) {
   try {
     auto job = dtis::io::LoadJob(job_file);
     if (feed_mm_min > 0.0) job.vpop.feed_mm_s = feed_mm_min / 60.0;
-    const auto machine = dtis::kinematics::LoadMachineFile(job.machine_file);
+    const auto machine = dtis::io::LoadJobMachine(job);
     const auto path = dtis::io::BuildPath(job);
     path->Reach(INFINITY);
     const double length = path->Length().value();

@@ -19,6 +19,7 @@
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/gcode_program.hpp"
+#include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
 
 namespace dtis::io {
@@ -64,7 +65,8 @@ struct CompareSpec {
 struct Job {
   std::string file;  // the job file itself
   std::string name;
-  std::string machine_file;  // resolved
+  std::string machine_file;                        // resolved
+  kinematics::MachineLoadOptions machine_options;  // machine_jerk_time_ms, for INI machines
   PathSpec path;
   std::optional<SurfaceSpec> surface;  // set for surface jobs ([surface] instead of [path])
   CompareSpec compare;                 // [compare], surface jobs only
@@ -81,6 +83,9 @@ struct Job {
 // tangential limits.
 inline constexpr double kMinPeriodMs = 0.01, kMaxPeriodMs = 100.0;
 inline constexpr double kMaxMotionHours = 24.0;
+
+// The job's machine, read with the job's machine options.
+std::unique_ptr<Machine> LoadJobMachine(const Job& job);
 
 // Throws dtis::Error naming the file, line and key.
 Job LoadJob(const std::string& path);

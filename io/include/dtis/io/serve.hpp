@@ -25,8 +25,9 @@ namespace dtis::io {
 struct ServeOptions {
   std::string socket_path;
   std::string machine_file;  // every job must run on this machine
-  StreamOptions stream;      // period comes from each job
-  std::string record_dir;    // if set: job-<id>.csv per job, what was streamed
+  kinematics::MachineLoadOptions machine_options;
+  StreamOptions stream;    // period comes from each job
+  std::string record_dir;  // if set: job-<id>.csv per job, what was streamed
   // When set: where the machine is before the first job (mm, rad).
   std::optional<AxisVector> from;
   // When set: every job is planned with this planner, whatever its [interpolator] planner says.

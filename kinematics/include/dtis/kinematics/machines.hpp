@@ -1,10 +1,21 @@
-// Machine models: Cartesian XYZ, and the table-tilting XYZAC of the Mikron UCP 710 (Beudaert 2012):
-// A tilts the cradle about an axis parallel to X, C turns the table about its own axis (parallel to
-// Z when A = 0), the spindle is along +Z.
+// Machine models, named after the LinuxCNC kinematics modules that describe the same machines:
+//   xyz          Cartesian (trivkins); the spindle is along +Z.
+//   xyzac-trt    table-tilting: A tilts the cradle about an axis parallel to X, C turns the table
+//                about its own axis (parallel to Z when A = 0); xyzac-trt-kins. The 5-axis Mikron
+//                UCP 710 of Beudaert 2012 is one.
+//   xyzbc-trt    the same with the cradle tilting about an axis parallel to Y (B); xyzbc-trt-kins.
+//   xyzac-head-table, xyzbc-head-table
+//                the spindle head tilts (A about X or B about Y, about a pivot head_length above
+//                the tool tip), C turns the table; LinuxCNC's maxkins is an xyzbc-head-table.
+// Every rotary angle is right-handed about its axis unless a direction of -1 reverses it.
 #pragma once
 
+#include <Eigen/Core>
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "dtis/core/machine.hpp"
@@ -22,6 +33,36 @@ struct KinematicsOptions {
   double axis_tolerance_rad = 1e-9;
 };
 
+enum class Kinematics : std::uint8_t {
+  kXyz,
+  kXyzacTrt,
+  kXyzbcTrt,
+  kXyzacHeadTable,
+  kXyzbcHeadTable,
+};
+
+// The name machine files use ("xyzbc-trt").
+const char* KinematicsName(Kinematics k);
+
+// Everything a machine is built from: what machine files and LinuxCNC INI files are read into, and
+// what `dtis machine import` writes back out. Units: mm, s, rad.
+struct MachineDescription {
+  std::string name;
+  Kinematics kinematics = Kinematics::kXyz;
+  std::vector<Axis> axes;  // X, Y, Z, then the tilting axis (A or B) and C for 5-axis machines
+  // trt: a point on the tilting axis and one on the C axis, in the workpiece frame with every
+  // axis at 0 (LinuxCNC: C point = (x, y, z)-rot-point, tilting point = rot-point + offsets).
+  Eigen::Vector3d tilt_pivot = Eigen::Vector3d::Zero();
+  Eigen::Vector3d c_pivot = Eigen::Vector3d::Zero();  // head-table: a point on the C axis too
+  // head-table: from the head's pivot to the tool tip along the tool axis at head angle 0.
+  double head_length_mm = 0.0;
+  // head-table: +1 right-handed, -1 reversed (LinuxCNC maxkins: head = conventional-directions
+  // ? +1 : -1, C = -1).
+  double head_direction = 1.0;
+  double c_direction = 1.0;
+  KinematicsOptions options;
+};
+
 class XyzMachine final : public Machine {
  public:
   XyzMachine(std::string name, std::vector<Axis> axes, const KinematicsOptions& options = {});
@@ -36,27 +77,63 @@ class XyzMachine final : public Machine {
   KinematicsOptions options_;
 };
 
-class XyzacMachine final : public Machine {
+// What the 5-axis machines share: their description, the two rotary axes at q[3] (A or B) and
+// q[4] (C), and the branch choice between the two rotary solutions of a tool axis.
+class FiveAxisMachine : public Machine {
  public:
-  // `a_pivot`: a point on the A axis, `c_pivot`: a point on the C axis, both in the workpiece frame
-  // at A = C = 0 (mm).
-  XyzacMachine(std::string name, std::vector<Axis> axes, const Eigen::Vector3d& a_pivot,
-               const Eigen::Vector3d& c_pivot, const KinematicsOptions& options = {});
-  const std::string& Name() const override { return name_; }
-  std::span<const Axis> Axes() const override { return axes_; }
-  InverseResult Inverse(const Pose& pose, const AxisVector* previous, AxisVector* q) const override;
-  Pose Forward(const AxisVector& q) const override;
+  explicit FiveAxisMachine(const MachineDescription& d);
+  const std::string& Name() const override { return d_.name; }
+  std::span<const Axis> Axes() const override { return d_.axes; }
 
- private:
-  std::string name_;
-  std::vector<Axis> axes_;
-  Eigen::Vector3d a_pivot_, c_pivot_;
-  KinematicsOptions options_;
+ protected:
+  MachineDescription d_;
+  bool tilts_about_y_;  // B rather than A
 };
 
-// Reads a machine file (TOML, units stated in the file; see samples/machines/). Throws dtis::Error
-// naming the file, line and key.
-std::unique_ptr<Machine> LoadMachineFile(const std::string& path);
+// A rotary table C on a cradle tilting about X (A) or Y (B). A workpiece point p is at
+//   m = t + R(T) (c + Rz(C) (p - c) - t)
+// in the machine frame (t, c: the pivots), which is where the linear axes put the tool tip, and
+// R(T) Rz(C) maps the tool axis onto the spindle's +Z.
+class TableTiltingMachine final : public FiveAxisMachine {
+ public:
+  using FiveAxisMachine::FiveAxisMachine;
+  InverseResult Inverse(const Pose& pose, const AxisVector* previous, AxisVector* q) const override;
+  Pose Forward(const AxisVector& q) const override;
+};
+
+// A spindle head tilting about X (A) or Y (B) over a rotary table C. The table carries the
+// workpiece point p to m = c + Rz(C) (p - c); the head turns the tool axis from +Z to w = R(H) +Z,
+// and the linear axes read the tool tip's position at H = 0: q = m + L (w - z).
+class HeadTableMachine final : public FiveAxisMachine {
+ public:
+  using FiveAxisMachine::FiveAxisMachine;
+  InverseResult Inverse(const Pose& pose, const AxisVector* previous, AxisVector* q) const override;
+  Pose Forward(const AxisVector& q) const override;
+};
+
+std::unique_ptr<Machine> BuildMachine(const MachineDescription& description);
+
+// Reads a machine: a TOML machine file (units stated in the file; see samples/machines/) or, for a
+// path ending in .ini, a LinuxCNC INI file (docs/machines.md). Throws dtis::Error naming the file,
+// line and key.
+struct MachineLoadOptions {
+  // For INI files whose axes have no MAX_JERK: jerk = MAX_ACCELERATION / jerk_time_s (s).
+  std::optional<double> jerk_time_s;
+};
+std::unique_ptr<Machine> LoadMachineFile(const std::string& path,
+                                         const MachineLoadOptions& options = {});
+MachineDescription ReadMachineDescription(const std::string& path,
+                                          const MachineLoadOptions& options = {});
 std::unique_ptr<Machine> ParseMachine(std::string_view text, const std::string& source_name);
+MachineDescription ParseMachineDescription(std::string_view text, const std::string& source_name);
+
+// LinuxCNC INI: [KINS] KINEMATICS, [TRAJ] COORDINATES / LINEAR_UNITS / ANGULAR_UNITS, [JOINT_n]
+// and [AXIS_L] limits, and the kinematics' pivot pins set in the INI's HALCMD lines and its HAL
+// files.
+MachineDescription ParseLinuxcncIni(std::string_view text, const std::string& source_name,
+                                    const MachineLoadOptions& options = {});
+
+// The description as a machine file, in mm, s and deg, that reads back to the same machine.
+std::string FormatMachineFile(const MachineDescription& description);
 
 }  // namespace dtis::kinematics

@@ -1,0 +1,436 @@
+// LinuxCNC INI files read as dtis machines: the kinematics module named in [KINS] KINEMATICS, the
+// axis letters of [TRAJ] COORDINATES mapped to joints as the module maps them, the limits of
+// [JOINT_n] and [AXIS_L] in the file's LINEAR_UNITS and ANGULAR_UNITS, and the module's pivot pins
+// as the INI's HAL files and HALCMD lines set them.
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <numbers>
+#include <optional>
+#include <sstream>
+
+#include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
+#include "dtis/kinematics/machines.hpp"
+
+namespace dtis::kinematics {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+std::string Trim(std::string_view s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string_view::npos) return {};
+  const auto e = s.find_last_not_of(" \t\r");
+  return std::string(s.substr(b, e - b + 1));
+}
+
+std::string Upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::optional<double> ParseNumber(std::string_view s) {
+  const std::string t = Trim(s);
+  double v = 0.0;
+  const char* first = t.data();
+  if (!t.empty() && t[0] == '+') ++first;
+  const auto [end, ec] = std::from_chars(first, t.data() + t.size(), v);
+  if (ec != std::errc() || end != t.data() + t.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+// The INI as LinuxCNC reads it: [SECTION], KEY = VALUE (repeatable), comments on lines starting
+// with # or ;, a trailing backslash continuing a line, #INCLUDE FILE (relative to the including
+// file's directory) read in its place.
+class IniFile {
+ public:
+  struct Entry {
+    std::string section, key, value, file;
+    int line = 0;
+  };
+
+  IniFile(std::string_view text, const std::string& name) { Read(text, name, 0); }
+
+  const Entry* Find(const std::string& section, const std::string& key) const {
+    for (const Entry& e : entries_) {
+      if (e.section == section && e.key == key) return &e;
+    }
+    return nullptr;
+  }
+  std::vector<const Entry*> All(const std::string& section, const std::string& key) const {
+    std::vector<const Entry*> out;
+    for (const Entry& e : entries_) {
+      if (e.section == section && e.key == key) out.push_back(&e);
+    }
+    return out;
+  }
+  bool HasSection(const std::string& section) const {
+    for (const Entry& e : entries_) {
+      if (e.section == section) return true;
+    }
+    return false;
+  }
+
+ private:
+  void Read(std::string_view text, const std::string& name, int depth) {
+    if (depth > 8) throw Error("{}: #INCLUDE nested more than 8 deep", name);
+    std::istringstream in{std::string(text)};
+    std::string raw;
+    int number = 0;
+    while (std::getline(in, raw)) {
+      ++number;
+      const int first = number;
+      std::string line = Trim(raw);
+      while (!line.empty() && line.back() == '\\' && std::getline(in, raw)) {
+        ++number;
+        line.pop_back();
+        line += Trim(raw);
+      }
+      if (line.rfind("#INCLUDE", 0) == 0) {
+        std::filesystem::path p = Trim(std::string_view(line).substr(8));
+        if (p.is_relative()) p = std::filesystem::path(name).parent_path() / p;
+        const auto included = ReadFileText(p.string());
+        if (!included)
+          throw Error("{}:{}: cannot read the #INCLUDE file {}", name, first, p.string());
+        Read(*included, p.string(), depth + 1);
+        continue;
+      }
+      if (line.empty() || line[0] == '#' || line[0] == ';') continue;
+      if (line[0] == '[') {
+        const auto close = line.find(']');
+        if (close == std::string::npos) throw Error("{}:{}: expected [SECTION]", name, first);
+        section_ = Trim(std::string_view(line).substr(1, close - 1));
+        continue;
+      }
+      const auto eq = line.find('=');
+      if (eq == std::string::npos) continue;  // LinuxCNC ignores lines without '='
+      entries_.push_back({section_, Trim(std::string_view(line).substr(0, eq)),
+                          Trim(std::string_view(line).substr(eq + 1)), name, first});
+    }
+  }
+
+  std::vector<Entry> entries_;
+  std::string section_;
+};
+
+// The pins HAL commands leave set: setp PIN VALUE, PIN = VALUE, sets SIGNAL VALUE with the
+// signal netted to the pin; [SECTION]KEY words take their INI values.
+class HalPins {
+ public:
+  explicit HalPins(const IniFile& ini) : ini_(ini) {}
+
+  void Command(const std::string& text) {
+    std::vector<std::string> words;
+    std::istringstream in(text.substr(0, text.find('#')));
+    for (std::string w; in >> w;) words.push_back(Substitute(w));
+    if (words.empty()) return;
+    if (words[0] == "setp" && words.size() >= 3) {
+      pins_[words[1]] = words[2];
+    } else if (words.size() == 3 && words[1] == "=") {
+      pins_[words[0]] = words[2];
+    } else if (words[0] == "sets" && words.size() >= 3) {
+      signals_[words[1]] = words[2];
+    } else if (words[0] == "net" && words.size() >= 3) {
+      for (std::size_t i = 2; i < words.size(); ++i) {
+        if (words[i] != "=>" && words[i] != "<=" && words[i] != "<=>") nets_[words[i]] = words[1];
+      }
+    }
+  }
+
+  void File(const std::string& path) {
+    const auto text = ReadFileText(path);
+    if (!text) return;  // LinuxCNC would refuse to start; the limits may still be wanted
+    std::istringstream in(*text);
+    for (std::string line; std::getline(in, line);) Command(line);
+  }
+
+  std::optional<std::string> Value(const std::string& pin) const {
+    if (const auto n = nets_.find(pin); n != nets_.end()) {
+      if (const auto s = signals_.find(n->second); s != signals_.end()) return s->second;
+    }
+    if (const auto p = pins_.find(pin); p != pins_.end()) return p->second;
+    return std::nullopt;
+  }
+
+ private:
+  std::string Substitute(const std::string& word) const {
+    if (word.size() < 3 || word[0] != '[') return word;
+    const auto close = word.find(']');
+    if (close == std::string::npos) return word;
+    std::string key = word.substr(close + 1);
+    if (key.size() > 2 && key.front() == '(' && key.back() == ')')
+      key = key.substr(1, key.size() - 2);
+    const auto* e = ini_.Find(word.substr(1, close - 1), key);
+    return e ? e->value : word;
+  }
+
+  const IniFile& ini_;
+  std::map<std::string, std::string> pins_, signals_, nets_;
+};
+
+struct Module {
+  const char* name;
+  Kinematics kinematics;
+  const char* default_coordinates;
+  bool fixed_joints;  // joints 0..8 are X..W whatever the coordinates (maxkins)
+};
+constexpr Module kModules[] = {
+    {"trivkins", Kinematics::kXyz, "XYZABCUVW", false},
+    {"xyzac-trt-kins", Kinematics::kXyzacTrt, "XYZAC", false},
+    {"xyzbc-trt-kins", Kinematics::kXyzbcTrt, "XYZBC", false},
+    {"maxkins", Kinematics::kXyzbcHeadTable, "XYZABCUVW", true},
+};
+
+class IniMachineReader {
+ public:
+  IniMachineReader(std::string_view text, const std::string& name, const MachineLoadOptions& o)
+      : ini_(text, name), name_(name), options_(o) {}
+
+  MachineDescription Read() {
+    MachineDescription d;
+    const auto* machine = ini_.Find("EMC", "MACHINE");
+    d.name = machine ? machine->value : std::filesystem::path(name_).stem().string();
+    const IniFile::Entry& kins = Require("KINS", "KINEMATICS");
+    std::istringstream words(kins.value);
+    std::string module_name;
+    words >> module_name;
+    std::string coordinates;
+    for (std::string w; words >> w;) {
+      if (w.rfind("coordinates=", 0) == 0) coordinates = Upper(w.substr(12));
+    }
+    const Module* module = nullptr;
+    for (const Module& m : kModules) {
+      if (module_name == m.name) module = &m;
+    }
+    if (!module) {
+      Fail(kins, fmt::format("kinematics '{}' is not one dtis models (trivkins, xyzac-trt-kins, "
+                             "xyzbc-trt-kins, maxkins)",
+                             module_name));
+    }
+    d.kinematics = module->kinematics;
+    const std::string traj = Coordinates();
+    if (coordinates.empty()) coordinates = traj.empty() ? module->default_coordinates : traj;
+    ReadUnits();
+
+    const std::string letters = d.kinematics == Kinematics::kXyz        ? "XYZ"
+                                : d.kinematics == Kinematics::kXyzacTrt ? "XYZAC"
+                                                                        : "XYZBC";
+    // The axes the machine moves must be ones dtis models (the module may define more).
+    const std::string& used = traj;
+    for (char c : used) {
+      if (letters.find(c) == std::string::npos) {
+        const auto* at = ini_.Find("TRAJ", "COORDINATES");
+        Fail(at ? *at : kins,
+             fmt::format("axis {} of coordinates {}: a {} machine in dtis has the axes {} (rotary "
+                         "axes without kinematics cannot orient the tool)",
+                         c, used, module_name, letters));
+      }
+    }
+    for (char c : letters) {
+      const auto position =
+          module->fixed_joints ? std::string("XYZABCUVW").find(c) : coordinates.find(c);
+      if (position == std::string::npos) {
+        Fail(kins, fmt::format("{} needs axis {} in its coordinates, got {}", module_name, c,
+                               coordinates));
+      }
+      d.axes.push_back(ReadAxis(c, static_cast<int>(position), module == &kModules[0]));
+    }
+    if (d.kinematics != Kinematics::kXyz) ReadPivots(module_name, &d);
+    return d;
+  }
+
+ private:
+  [[noreturn]] void Fail(const IniFile::Entry& e, const std::string& what) const {
+    throw Error("{}:{}: [{}] {}: {}", e.file, e.line, e.section, e.key, what);
+  }
+
+  const IniFile::Entry& Require(const std::string& section, const std::string& key) const {
+    const auto* e = ini_.Find(section, key);
+    if (!e) throw Error("{}: [{}] {} is missing", name_, section, key);
+    return *e;
+  }
+
+  std::string Coordinates() const {
+    const auto* e = ini_.Find("TRAJ", "COORDINATES");
+    std::string out;
+    if (e) {
+      for (char c : Upper(e->value)) {
+        if (c != ' ' && c != '\t') out += c;
+      }
+    }
+    return out;
+  }
+
+  // mm/metric/inch/imperial, or a number of machine units per mm (per degree for angles), as
+  // LinuxCNC reads them.
+  void ReadUnits() {
+    if (const auto* e = ini_.Find("TRAJ", "LINEAR_UNITS")) {
+      const std::string v = Upper(e->value);
+      if (v == "MM" || v == "METRIC") {
+        length_ = 1.0;
+      } else if (v == "IN" || v == "INCH" || v == "IMPERIAL") {
+        length_ = 25.4;
+      } else if (const auto n = ParseNumber(v); n && *n > 0.0) {
+        length_ = 1.0 / *n;
+      } else {
+        Fail(*e, fmt::format("expected mm, inch or a number of units per mm, got '{}'", e->value));
+      }
+    }
+    if (const auto* e = ini_.Find("TRAJ", "ANGULAR_UNITS")) {
+      const std::string v = Upper(e->value);
+      if (v == "DEG" || v == "DEGREE") {
+        angle_ = kPi / 180.0;
+      } else if (v == "RAD" || v == "RADIAN") {
+        angle_ = 1.0;
+      } else if (v == "GRAD" || v == "GON") {
+        angle_ = kPi / 200.0;
+      } else if (const auto n = ParseNumber(v); n && *n > 0.0) {
+        angle_ = kPi / 180.0 / *n;
+      } else {
+        Fail(*e, fmt::format("expected deg, rad, grad or a number of units per degree, got '{}'",
+                             e->value));
+      }
+    }
+  }
+
+  // The key's value in [JOINT_n] and [AXIS_L], each checked to be a number.
+  struct Pair {
+    std::optional<double> joint, axis;
+  };
+  Pair Values(int joint, char letter, const std::string& key) const {
+    Pair p;
+    const auto read = [&](const std::string& section) -> std::optional<double> {
+      const auto* e = ini_.Find(section, key);
+      if (!e) return std::nullopt;
+      const auto v = ParseNumber(e->value);
+      if (!v) Fail(*e, fmt::format("expected a number, got '{}'", e->value));
+      return v;
+    };
+    p.joint = read(fmt::format("JOINT_{}", joint));
+    p.axis = read(fmt::format("AXIS_{}", letter));
+    return p;
+  }
+
+  // The tighter of the joint's and the axis' limit: the machine enforces both. NaN when neither
+  // gives it and it is not required.
+  double Limit(int joint, char letter, const std::string& key, bool required) const {
+    const Pair p = Values(joint, letter, key);
+    if (!p.joint && !p.axis) {
+      if (!required) return NAN;
+      throw Error("{}: neither [JOINT_{}] nor [AXIS_{}] gives {}", name_, joint, letter, key);
+    }
+    for (const std::string section :
+         {fmt::format("JOINT_{}", joint), fmt::format("AXIS_{}", letter)}) {
+      const auto* e = ini_.Find(section, key);
+      if (e && !(*ParseNumber(e->value) > 0.0)) {
+        Fail(*e, fmt::format("expected a number > 0, got {}", e->value));
+      }
+    }
+    return std::min(p.joint.value_or(INFINITY), p.axis.value_or(INFINITY));
+  }
+
+  Axis ReadAxis(char letter, int joint, bool identity) const {
+    Axis a;
+    a.name = std::string(1, letter);
+    a.rotary = letter >= 'A' && letter <= 'C';
+    const double k = a.rotary ? angle_ : length_;
+    a.vmax = Limit(joint, letter, "MAX_VELOCITY", true) * k;
+    a.amax = Limit(joint, letter, "MAX_ACCELERATION", true) * k;
+    const double jerk = Limit(joint, letter, "MAX_JERK", false);
+    if (!std::isnan(jerk)) {
+      a.jmax = jerk * k;
+    } else if (options_.jerk_time_s) {
+      a.jmax = a.amax / *options_.jerk_time_s;
+    } else {
+      throw Error(
+          "{}: neither [JOINT_{}] nor [AXIS_{}] gives MAX_JERK; give the job key "
+          "machine_jerk_time_ms (or --jerk-time-ms): jerk = MAX_ACCELERATION / jerk time",
+          name_, joint, letter);
+    }
+    // Travel: the joint's (machine frame); with identity kinematics the axis' too.
+    const Pair lo = Values(joint, letter, "MIN_LIMIT");
+    const Pair hi = Values(joint, letter, "MAX_LIMIT");
+    const auto* wrapped = ini_.Find(fmt::format("AXIS_{}", letter), "WRAPPED_ROTARY");
+    const bool has_limits = lo.joint || lo.axis || hi.joint || hi.axis;
+    if (a.rotary && (!has_limits || (wrapped && wrapped->value != "0"))) {
+      a.continuous = true;
+      a.travel_min = -INFINITY;
+      a.travel_max = INFINITY;
+      return a;
+    }
+    // LinuxCNC takes +-1e99 for a limit not given; a linear axis has to state its travel here.
+    for (const auto& [pair, key] : {std::pair{&lo, "MIN_LIMIT"}, std::pair{&hi, "MAX_LIMIT"}}) {
+      if (!pair->joint && !pair->axis) {
+        throw Error("{}: neither [JOINT_{}] nor [AXIS_{}] gives {}", name_, joint, letter, key);
+      }
+    }
+    double min = lo.joint ? *lo.joint : *lo.axis;
+    double max = hi.joint ? *hi.joint : *hi.axis;
+    if (identity) {
+      min = std::max(min, lo.axis.value_or(min));
+      max = std::min(max, hi.axis.value_or(max));
+    }
+    if (!(min < max)) {
+      throw Error("{}: axis {} (joint {}) has MIN_LIMIT {} not below MAX_LIMIT {}", name_, letter,
+                  joint, min, max);
+    }
+    a.travel_min = min * k;
+    a.travel_max = max * k;
+    return a;
+  }
+
+  void ReadPivots(const std::string& module, MachineDescription* d) const {
+    HalPins pins(ini_);
+    const std::filesystem::path dir = std::filesystem::path(name_).parent_path();
+    const auto hal_file = [&](const std::string& value) {
+      std::filesystem::path p = value;
+      if (value.rfind("LIB:", 0) == 0) {
+        p = std::filesystem::path("/usr/share/linuxcnc/hallib") / value.substr(4);
+      } else if (p.is_relative()) {
+        p = dir / p;
+      }
+      if (p.extension() != ".tcl") pins.File(p.string());
+    };
+    for (const auto* e : ini_.All("HAL", "HALFILE")) hal_file(e->value);
+    for (const auto* e : ini_.All("HAL", "HALCMD")) pins.Command(e->value);
+    for (const auto* e : ini_.All("HAL", "POSTGUI_HALFILE")) hal_file(e->value);
+    const auto pin = [&](const std::string& name, double fallback) {
+      const auto v = pins.Value(module + "." + name);
+      if (!v) return fallback;
+      const auto n = ParseNumber(*v);
+      if (!n) throw Error("{}: HAL sets {}.{} to '{}', expected a number", name_, module, name, *v);
+      return *n;
+    };
+    if (module == "maxkins") {
+      // Tilting head B (reversed), table C (reversed) about the machine's Z axis.
+      d->head_length_mm = pin("pivot-length", 0.666) * length_;
+      d->head_direction = -1.0;
+      d->c_direction = -1.0;
+      return;
+    }
+    const Eigen::Vector3d rot(pin("x-rot-point", 0.0), pin("y-rot-point", 0.0),
+                              pin("z-rot-point", 0.0));
+    const Eigen::Vector3d offset(
+        d->kinematics == Kinematics::kXyzbcTrt ? pin("x-offset", 0.0) : 0.0,
+        d->kinematics == Kinematics::kXyzacTrt ? pin("y-offset", 0.0) : 0.0, pin("z-offset", 0.0));
+    d->c_pivot = rot * length_;
+    d->tilt_pivot = (rot + offset) * length_;
+  }
+
+  IniFile ini_;
+  std::string name_;
+  MachineLoadOptions options_;
+  double length_ = 1.0;         // machine units to mm
+  double angle_ = kPi / 180.0;  // to rad
+};
+
+}  // namespace
+
+MachineDescription ParseLinuxcncIni(std::string_view text, const std::string& source_name,
+                                    const MachineLoadOptions& options) {
+  return IniMachineReader(text, source_name, options).Read();
+}
+
+}  // namespace dtis::kinematics
