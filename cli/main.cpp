@@ -520,10 +520,22 @@ int ImportMachine(const std::string& from, const std::string& output, double jer
   return 0;
 }
 
+// The verifier's report of a setpoint file; its errors (too few rows, times that do not increase,
+// other axes) name the file.
+dtis::interp::VerifyReport VerifyFile(const std::string& file,
+                                      const dtis::interp::SetpointTable& table,
+                                      const dtis::Machine& machine) {
+  try {
+    return dtis::interp::Verify(table, machine);
+  } catch (const dtis::Error& e) {
+    throw dtis::Error("{}: {}", file, e.what());
+  }
+}
+
 int Verify(const std::string& setpoints, const std::string& machine_file, double jerk_time_ms) {
   const auto machine = dtis::kinematics::LoadMachineFile(machine_file, JerkTime(jerk_time_ms));
   const auto table = dtis::io::ReadSetpoints(setpoints);
-  const auto report = dtis::interp::Verify(table, *machine);
+  const dtis::interp::VerifyReport report = VerifyFile(setpoints, table, *machine);
   std::fputs(dtis::interp::FormatReport(report).c_str(), stdout);
   return report.Passed() ? 0 : kExitVerifyFailed;
 }
@@ -563,6 +575,8 @@ int Report(const ReportArgs& a) {
   if (!job) in.about.push_back({"machine", fmt::format("{} ({})", machine->Name(), a.machine)});
   in.machine = machine.get();
   in.table = &table;
+  const dtis::interp::VerifyReport verify = VerifyFile(a.setpoints, table, *machine);
+  in.verify = &verify;
   in.limiters = std::move(limiters);
   dtis::io::WriteFileAtomically(output, job ? RenderJobReport(*job, std::move(in), plotly)
                                             : dtis::io::RenderReport(in, plotly));

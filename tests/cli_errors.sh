@@ -132,6 +132,8 @@ gcode_case gcode-rotary 'G0 X0 Y0\nG1 X10 F600 A5\nM2\n' \
 # As LinuxCNC, its interpreter wants a program's end (M2, M30 or a closing %).
 gcode_case gcode-end 'G0 X0 Y0\nG1 X10 F600\n' "" \
   "bad.ngc:2: File ended with no percent sign or program end"
+gcode_case gcode-exponent 'G0 X0 Y0\nG1 X1e300 F600\nM2\n' \
+  "bad.ngc:2:4: word 'X1e300': G-code numbers have no exponent" "bad.ngc:2: E word with no G70"
 
 # --planner: one of the two, and only for the VPOp interpolator.
 expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
@@ -205,6 +207,15 @@ if "$dtis" run "$work/ini_ok.toml" -o "$work/ini.csv" -q &&
 else
   echo "FAIL ini-machine-plans"; failures=$((failures + 1))
 fi
+
+# Outputs a job names stay in the current folder; a setpoint file too short to verify is named.
+printf '[output]\nsetpoints = "../escape.csv"\n' | cat "$work/line.toml" - > "$work/escape.toml"
+expect output-escape "escape.toml:8: key 'output.setpoints': expected a path inside the current folder" -- "$dtis" run "$work/escape.toml"
+printf '[output]\nlimiters = "/tmp/x.csv"\n' | cat "$work/line.toml" - > "$work/abs.toml"
+expect output-absolute "key 'output.limiters': expected a path inside the current folder" -- "$dtis" run "$work/abs.toml" -o "$work/out.csv"
+printf 't,X,Y,Z\n0,0,0,0\n' > "$work/one_row.csv"
+expect verify-one-row "one_row.csv: a setpoint sequence needs at least 2 rows, got 1" -- "$dtis" verify "$work/one_row.csv" "$work/mikron_ucp710_xyz.toml"
+expect report-one-row "one_row.csv: a setpoint sequence needs at least 2 rows" -- "$dtis" report "$work/one_row.csv" "$work/mikron_ucp710_xyz.toml" -o "$work/out.html"
 
 # Reports: a limiter report of another run, or a malformed one, names the file and line; a report
 # needs a machine; figures name the report, the format or the browser that failed.

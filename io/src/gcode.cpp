@@ -100,6 +100,18 @@ class GcodeReader::Blocks {
           !std::isfinite(value)) {
         Fail(column, fmt::format("word '{}' needs a number", letter));
       }
+      // "X1e300": G-code numbers have no exponent; the E would read as a word of its own.
+      if (i + 1 < n && (text[i] == 'e' || text[i] == 'E') &&
+          (std::isdigit(static_cast<unsigned char>(text[i + 1])) || text[i + 1] == '-' ||
+           text[i + 1] == '+')) {
+        std::size_t end_of_exponent = i + 2;
+        while (end_of_exponent < n &&
+               std::isdigit(static_cast<unsigned char>(text[end_of_exponent])))
+          ++end_of_exponent;
+        Fail(column, fmt::format("word '{}{}': G-code numbers have no exponent (write the number "
+                                 "out in full)",
+                                 letter, text.substr(start, end_of_exponent - start)));
+      }
       words->push_back({letter, value, column});
     }
     return !words->empty() && !only_percent;

@@ -328,8 +328,22 @@ Job ReadJob(TomlTable& root) {
   job.taylor.feed_mm_s = job.vpop.feed_mm_s;
 
   if (auto out = root.OptionalTable("output")) {
-    job.setpoints_out = out->OptionalString("setpoints").value_or("");
-    job.limiters_out = out->OptionalString("limiters").value_or("");
+    // A job names outputs inside the current folder: a job file from elsewhere never writes over
+    // files outside it (the command line's -o may name any path).
+    const auto inside = [&](std::string_view key) -> std::string {
+      const std::string path = out->OptionalString(key).value_or("");
+      const std::filesystem::path p(path);
+      bool up = false;
+      for (const auto& part : p) up = up || part == "..";
+      if (p.is_absolute() || up) {
+        out->Fail(key, fmt::format("expected a path inside the current folder (not absolute, no "
+                                   "'..'), got '{}'; use -o for any other place",
+                                   path));
+      }
+      return path;
+    };
+    job.setpoints_out = inside("setpoints");
+    job.limiters_out = inside("limiters");
     out->RejectUnknown();
   }
   root.RejectUnknown();
