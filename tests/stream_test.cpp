@@ -89,6 +89,30 @@ TEST(Stream, EqualsTheRunWithTheSameHorizon) {
     }
 }
 
+// A G-code job's feed is its F words; the link from where the machine is to its first block moves
+// at the program's rapid feed (here the linear axes' 30 m/min together), never at a placeholder.
+TEST(Stream, GcodeLinkMovesAtTheRapidFeed) {
+  const io::Job job = SampleJob("lock");
+  const auto machine = io::LoadJobMachine(job);
+  const io::RunResult run = io::RunJob(job);
+  Capture out(machine->AxisCount());
+  io::StreamOptions o;
+  o.period_s = job.vpop.period_s;
+  o.commit_horizon = job.vpop.commit_horizon;
+  io::Stream stream(*machine, o);
+  AxisVector from(3);
+  from << 150.0, 100.0, 50.0;
+  const auto segments = io::JobSegments(job, *machine, from);
+  const io::StreamResult r = stream.Run(*segments, out);
+  ASSERT_EQ(r.end, io::StreamEnd::kComplete);
+  EXPECT_TRUE(r.verify.Passed());
+  // The link: up, across about 190 mm and down, each at most a few tenths of a second of
+  // acceleration at 2.1-3 m/s^2 on top of its length at 500 mm/s.
+  const double link_s = static_cast<double>(out.rows.size() - run.table.Rows()) * o.period_s;
+  EXPECT_GT(link_s, 0.3);
+  EXPECT_LT(link_s, 3.0) << "the link moved at a crawl";
+}
+
 // A chain of more than window_blocks blocks is streamed through a window (smoothed as it is
 // planned, dropped behind): the rows are still those `dtis run` plans from the whole chain.
 TEST(Stream, WindowedChainsStreamAsTheRunPlansThem) {

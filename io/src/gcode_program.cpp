@@ -80,14 +80,15 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
       axis_of_(file_, uses_rotary, machine),
       base_(base),
       options_(options),
-      rapid_feed_(options.rapid_feed_mm_s) {
-  if (!(rapid_feed_ > 0.0)) {
-    double sum = 0.0;
-    for (const Axis& a : machine.Axes()) {
-      if (!a.rotary) sum += a.vmax * a.vmax;
-    }
-    rapid_feed_ = std::sqrt(sum);
+      rapid_feed_(RapidFeed(options, machine)) {}
+
+double RapidFeed(const GcodeOptions& options, const Machine& machine) {
+  if (options.rapid_feed_mm_s > 0.0) return options.rapid_feed_mm_s;
+  double sum = 0.0;
+  for (const Axis& a : machine.Axes()) {
+    if (!a.rotary) sum += a.vmax * a.vmax;
   }
+  return std::sqrt(sum);
 }
 
 GcodeSegment GcodeSegments::ChainSegment() const {

@@ -237,7 +237,10 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
       return s;
     };
   }
-  return std::make_unique<ListSegments>(std::move(next), machine, from, job.vpop, clearance_mm);
+  // A G-code job's own feed is a placeholder (its F words rule): its links move at its rapids'.
+  interp::VpopOptions link = job.vpop;
+  if (job.path.kind == PathSpec::Kind::kGcode) link.feed_mm_s = RapidFeed(job.path.gcode, machine);
+  return std::make_unique<ListSegments>(std::move(next), machine, from, link, clearance_mm);
 }
 
 // ---- outputs

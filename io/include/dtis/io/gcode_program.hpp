@@ -49,6 +49,10 @@ struct GcodeOptions {
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
 std::array<int, 3> RotaryWordAxes(const Machine& machine);
 
+// The feed of a program's rapids (mm/s): options.rapid_feed_mm_s, or when 0 as fast as the
+// machine's linear axes allow together. Links to and between G-code jobs move at it too.
+double RapidFeed(const GcodeOptions& options, const Machine& machine);
+
 // The tool axis the machine holds at a move's rotary words (degrees), through its forward
 // kinematics. Throws dtis::Error if the program moves a rotary axis the machine does not have.
 class GcodeToolAxis {
