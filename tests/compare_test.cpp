@@ -198,6 +198,52 @@ TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
   }
 }
 
+// A G5.2 export read back through LinuxCNC's interpreter is the fitted spline itself: every point
+// of the planned NURBS on it, and the same motion time as the fit planned directly.
+TEST(Exports, LinuxcncNurbsReadsBackToTheSameMotion) {
+  if (io::DefaultGcodeInterpreter() != io::GcodeInterpreter::kRs274ngc) {
+    GTEST_SKIP() << "dtis was built without LinuxCNC's interpreter";
+  }
+  const geometry::CurvePath circle = Circle(5.0);
+  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
+  geometry::BSplineFitOptions o;
+  o.tolerance.tip_mm = 0.001;
+  o.uniform_knots = true;
+  const geometry::BSplineFit fit = geometry::FitCubicBSpline(s, o, "circle");
+  const std::string file = test::Scratch("circle_g52.ngc");
+  std::ofstream(file) << io::FormatLinuxcncNurbs({{&fit.bottom, nullptr, Vector3d::UnitZ()}},
+                                                 3000.0, {20.0, 5.0}, {"circle"});
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const io::GcodeProgram back = io::ReadGcode(file, io::GcodeInterpreter::kRs274ngc);
+  interp::VpopOptions vo;
+  const io::GcodePlan plan = io::BuildGcodePlan(back, *machine, vo, io::GcodeOptions{});
+  int curves = 0;
+  for (std::size_t k = 0; k < plan.paths.size(); ++k) {
+    if (plan.segments[k].name.find("NURBS") == std::string::npos) continue;
+    ++curves;
+    const PathSource& read = *plan.paths[k];
+    const geometry::CurvePath fitted(geometry::BSplineCurve(fit.bottom), Vector3d::UnitZ());
+    // The export writes the poles to 1e-6 mm: lengths agree to a few of those.
+    ASSERT_NEAR(*read.Length(), *fitted.Length(), 1e-5);
+    PathState a = read.Start(), b = fitted.Start();
+    for (int i = 0; i <= 400; ++i) {
+      const double at = *read.Length() * i / 400.0;
+      const PathSample x = read.At(a, at), y = fitted.At(b, *fitted.Length() * i / 400.0);
+      a = x.state;
+      b = y.state;
+      ASSERT_LT((x.pose.tip - y.pose.tip).norm(), 1e-6) << "at " << at << " mm";
+    }
+    interp::ProgramSegment fitted_segment = plan.segments[k];
+    fitted_segment.path = &fitted;
+    const auto planned_read = interp::PlanProgram({plan.segments[k]}, *machine);
+    const auto planned_fit = interp::PlanProgram({fitted_segment}, *machine);
+    EXPECT_EQ(plan.segments[k].options.feed_mm_s, 50.0);  // F3000
+    EXPECT_NEAR(planned_read.total.motion_time_s, planned_fit.total.motion_time_s, 1e-9);
+  }
+  EXPECT_EQ(curves, 1);
+}
+
 // The comparison on a sample: every claim the comparison makes.
 void CheckCompare(const io::Job& job, const std::string& dir) {
   io::CompareOptions options;
