@@ -251,7 +251,7 @@ Job ReadJob(TomlTable& root) {
   job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
   if (auto t = root.OptionalPositiveNumber("machine_jerk_time_ms")) {
-    if (std::filesystem::path(job.machine_file).extension() != ".ini") {
+    if (!kinematics::IsLinuxcncIni(job.machine_file)) {
       root.Fail("machine_jerk_time_ms",
                 "only used with a LinuxCNC INI machine; a machine file states every jerk");
     }

@@ -214,9 +214,7 @@ class IniMachineReader {
     if (coordinates.empty()) coordinates = traj.empty() ? module->default_coordinates : traj;
     ReadUnits();
 
-    const std::string letters = d.kinematics == Kinematics::kXyz        ? "XYZ"
-                                : d.kinematics == Kinematics::kXyzacTrt ? "XYZAC"
-                                                                        : "XYZBC";
+    const std::string letters = AxisLetters(d.kinematics);
     // The axes the machine moves must be ones dtis models (the module may define more).
     const std::string& used = traj;
     for (char c : used) {
@@ -295,22 +293,29 @@ class IniMachineReader {
     }
   }
 
-  // The key's value in [JOINT_n] and [AXIS_L], each checked to be a number.
+  // The key's value in [JOINT_n] and [AXIS_L], each checked to be a number, with its line.
+  struct Given {
+    double value;
+    const IniFile::Entry* entry;
+  };
   struct Pair {
-    std::optional<double> joint, axis;
+    std::optional<Given> joint, axis;
   };
   Pair Values(int joint, char letter, const std::string& key) const {
-    Pair p;
-    const auto read = [&](const std::string& section) -> std::optional<double> {
+    const auto read = [&](const std::string& section) -> std::optional<Given> {
       const auto* e = ini_.Find(section, key);
       if (!e) return std::nullopt;
       const auto v = ParseNumber(e->value);
       if (!v) Fail(*e, fmt::format("expected a number, got '{}'", e->value));
-      return v;
+      return Given{*v, e};
     };
-    p.joint = read(fmt::format("JOINT_{}", joint));
-    p.axis = read(fmt::format("AXIS_{}", letter));
-    return p;
+    return {read(fmt::format("JOINT_{}", joint)), read(fmt::format("AXIS_{}", letter))};
+  }
+
+  [[noreturn]] void Missing(int joint, char letter, const std::string& key,
+                            std::string_view remedy = "") const {
+    throw Error("{}: neither [JOINT_{}] nor [AXIS_{}] gives {}{}", name_, joint, letter, key,
+                remedy);
   }
 
   // The tighter of the joint's and the axis' limit: the machine enforces both. NaN when neither
@@ -319,16 +324,14 @@ class IniMachineReader {
     const Pair p = Values(joint, letter, key);
     if (!p.joint && !p.axis) {
       if (!required) return NAN;
-      throw Error("{}: neither [JOINT_{}] nor [AXIS_{}] gives {}", name_, joint, letter, key);
+      Missing(joint, letter, key);
     }
-    for (const std::string section :
-         {fmt::format("JOINT_{}", joint), fmt::format("AXIS_{}", letter)}) {
-      const auto* e = ini_.Find(section, key);
-      if (e && !(*ParseNumber(e->value) > 0.0)) {
-        Fail(*e, fmt::format("expected a number > 0, got {}", e->value));
+    for (const auto& given : {p.joint, p.axis}) {
+      if (given && !(given->value > 0.0)) {
+        Fail(*given->entry, fmt::format("expected a number > 0, got {}", given->entry->value));
       }
     }
-    return std::min(p.joint.value_or(INFINITY), p.axis.value_or(INFINITY));
+    return std::min(p.joint ? p.joint->value : INFINITY, p.axis ? p.axis->value : INFINITY);
   }
 
   Axis ReadAxis(char letter, int joint, bool identity) const {
@@ -344,10 +347,9 @@ class IniMachineReader {
     } else if (options_.jerk_time_s) {
       a.jmax = a.amax / *options_.jerk_time_s;
     } else {
-      throw Error(
-          "{}: neither [JOINT_{}] nor [AXIS_{}] gives MAX_JERK; give the job key "
-          "machine_jerk_time_ms (or --jerk-time-ms): jerk = MAX_ACCELERATION / jerk time",
-          name_, joint, letter);
+      Missing(joint, letter, "MAX_JERK",
+              "; give the job key machine_jerk_time_ms (or --jerk-time-ms): jerk = "
+              "MAX_ACCELERATION / jerk time");
     }
     // Travel: the joint's (machine frame); with identity kinematics the axis' too.
     const Pair lo = Values(joint, letter, "MIN_LIMIT");
@@ -361,16 +363,13 @@ class IniMachineReader {
       return a;
     }
     // LinuxCNC takes +-1e99 for a limit not given; a linear axis has to state its travel here.
-    for (const auto& [pair, key] : {std::pair{&lo, "MIN_LIMIT"}, std::pair{&hi, "MAX_LIMIT"}}) {
-      if (!pair->joint && !pair->axis) {
-        throw Error("{}: neither [JOINT_{}] nor [AXIS_{}] gives {}", name_, joint, letter, key);
-      }
-    }
-    double min = lo.joint ? *lo.joint : *lo.axis;
-    double max = hi.joint ? *hi.joint : *hi.axis;
+    if (!lo.joint && !lo.axis) Missing(joint, letter, "MIN_LIMIT");
+    if (!hi.joint && !hi.axis) Missing(joint, letter, "MAX_LIMIT");
+    double min = (lo.joint ? *lo.joint : *lo.axis).value;
+    double max = (hi.joint ? *hi.joint : *hi.axis).value;
     if (identity) {
-      min = std::max(min, lo.axis.value_or(min));
-      max = std::min(max, hi.axis.value_or(max));
+      if (lo.axis) min = std::max(min, lo.axis->value);
+      if (hi.axis) max = std::min(max, hi.axis->value);
     }
     if (!(min < max)) {
       throw Error("{}: axis {} (joint {}) has MIN_LIMIT {} not below MAX_LIMIT {}", name_, letter,

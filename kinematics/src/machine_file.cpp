@@ -1,5 +1,6 @@
 // Machine files: TOML with the units stated in the file, converted to mm, s, rad on reading; a
 // path ending in .ini is read as a LinuxCNC INI file (linuxcnc_ini.cpp).
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -93,37 +94,15 @@ Axis ReadAxis(TomlTable& axes, const std::string& name, bool rotary, const Units
   return a;
 }
 
-struct KinematicsChoice {
-  const char* name;
-  Kinematics kinematics;
-};
-// "xyzac" is the name machine files used before the table-tilting B machine existed.
-constexpr KinematicsChoice kKinematics[] = {
-    {"xyz", Kinematics::kXyz},
-    {"xyzac", Kinematics::kXyzacTrt},
-    {"xyzac-trt", Kinematics::kXyzacTrt},
-    {"xyzbc-trt", Kinematics::kXyzbcTrt},
-    {"xyzac-head-table", Kinematics::kXyzacHeadTable},
-    {"xyzbc-head-table", Kinematics::kXyzbcHeadTable},
-};
-
-bool IsHeadTable(Kinematics k) {
-  return k == Kinematics::kXyzacHeadTable || k == Kinematics::kXyzbcHeadTable;
-}
-
-const char* TiltLetter(Kinematics k) {
-  return k == Kinematics::kXyzbcTrt || k == Kinematics::kXyzbcHeadTable ? "B" : "A";
+// The machine file's key for the point on the tilting axis: "a_axis" or "b_axis".
+std::string TiltPivotKey(Kinematics k) {
+  return fmt::format("{}_axis", static_cast<char>(std::tolower(AxisLetters(k)[3])));
 }
 
 MachineDescription ReadMachine(TomlTable& root) {
   MachineDescription d;
   d.name = root.String("name");
-  std::vector<std::string> names;
-  for (const auto& k : kKinematics) names.emplace_back(k.name);
-  const std::string kinematics = root.Choice("kinematics", names);
-  for (const auto& k : kKinematics) {
-    if (kinematics == k.name) d.kinematics = k.kinematics;
-  }
+  d.kinematics = *KinematicsNamed(root.Choice("kinematics", KinematicsNames()));
   const bool five_axis = d.kinematics != Kinematics::kXyz;
   TomlTable units_table = root.Table("units");
   const Units units = ReadUnits(units_table, five_axis);
@@ -134,7 +113,7 @@ MachineDescription ReadMachine(TomlTable& root) {
     root.RejectUnknown();
     return d;
   }
-  const std::string tilt = TiltLetter(d.kinematics);
+  const std::string tilt(1, AxisLetters(d.kinematics)[3]);
   for (const std::string& n : {tilt, std::string("C")}) {
     d.axes.push_back(ReadAxis(axes_table, n, true, units));
   }
@@ -156,16 +135,11 @@ MachineDescription ReadMachine(TomlTable& root) {
       directions->RejectUnknown();
     }
   } else {
-    d.tilt_pivot = pivot.Point(fmt::format("{}_axis", tilt == "A" ? "a" : "b")) * units.length;
+    d.tilt_pivot = pivot.Point(TiltPivotKey(d.kinematics)) * units.length;
   }
   pivot.RejectUnknown();
   root.RejectUnknown();
   return d;
-}
-
-bool IsIni(const std::string& path) {
-  const std::string ext = std::filesystem::path(path).extension().string();
-  return ext == ".ini" || ext == ".INI";
 }
 
 std::string Number(double v) { return fmt::format("{:.15g}", v); }
@@ -175,6 +149,11 @@ std::string Point(const Eigen::Vector3d& p) {
 }
 
 }  // namespace
+
+bool IsLinuxcncIni(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  return ext == ".ini" || ext == ".INI";
+}
 
 MachineDescription ParseMachineDescription(std::string_view text, const std::string& source_name) {
   TomlTable root = TomlTable::ParseString(text, source_name);
@@ -187,7 +166,7 @@ std::unique_ptr<Machine> ParseMachine(std::string_view text, const std::string& 
 
 MachineDescription ReadMachineDescription(const std::string& path,
                                           const MachineLoadOptions& options) {
-  if (IsIni(path)) {
+  if (IsLinuxcncIni(path)) {
     const auto text = ReadFileText(path);
     if (!text) throw Error("{}: cannot open the LinuxCNC INI file", path);
     return ParseLinuxcncIni(*text, path, options);
@@ -223,11 +202,10 @@ std::string FormatMachineFile(const MachineDescription& d) {
   out += fmt::format("\n[pivot]\nc_axis = {}\n", Point(d.c_pivot));
   if (IsHeadTable(d.kinematics)) {
     out += fmt::format("head_length = {}\n", Number(d.head_length_mm));
-    out += fmt::format("\n[directions]\n{} = {}\nC = {}\n", TiltLetter(d.kinematics),
+    out += fmt::format("\n[directions]\n{} = {}\nC = {}\n", AxisLetters(d.kinematics)[3],
                        Number(d.head_direction), Number(d.c_direction));
   } else {
-    out += fmt::format("{}_axis = {}\n", d.kinematics == Kinematics::kXyzbcTrt ? "b" : "a",
-                       Point(d.tilt_pivot));
+    out += fmt::format("{} = {}\n", TiltPivotKey(d.kinematics), Point(d.tilt_pivot));
   }
   return out;
 }

@@ -96,27 +96,51 @@ InverseResult PickBranch(std::span<const Axis> axes, const KinematicsOptions& op
 
 double TiltFromC(const Eigen::Vector3d& n) { return std::atan2(std::hypot(n.x(), n.y()), n.z()); }
 
-bool TiltsAboutY(Kinematics k) {
-  return k == Kinematics::kXyzbcTrt || k == Kinematics::kXyzbcHeadTable;
+struct KinematicsInfo {
+  const char* name;
+  Kinematics kinematics;
+  const char* axes;
+  bool head_table;
+  bool alias;  // an older name of the same kinematics
+};
+constexpr KinematicsInfo kKinematics[] = {
+    {"xyz", Kinematics::kXyz, "XYZ", false, false},
+    {"xyzac", Kinematics::kXyzacTrt, "XYZAC", false, true},
+    {"xyzac-trt", Kinematics::kXyzacTrt, "XYZAC", false, false},
+    {"xyzbc-trt", Kinematics::kXyzbcTrt, "XYZBC", false, false},
+    {"xyzac-head-table", Kinematics::kXyzacHeadTable, "XYZAC", true, false},
+    {"xyzbc-head-table", Kinematics::kXyzbcHeadTable, "XYZBC", true, false},
+};
+
+const KinematicsInfo& Info(Kinematics k) {
+  for (const KinematicsInfo& i : kKinematics) {
+    if (i.kinematics == k && !i.alias) return i;
+  }
+  throw Error("unknown kinematics {}", static_cast<int>(k));
 }
+
+bool TiltsAboutY(Kinematics k) { return AxisLetters(k)[3] == 'B'; }
 
 }  // namespace
 
-const char* KinematicsName(Kinematics k) {
-  switch (k) {
-    case Kinematics::kXyz:
-      return "xyz";
-    case Kinematics::kXyzacTrt:
-      return "xyzac-trt";
-    case Kinematics::kXyzbcTrt:
-      return "xyzbc-trt";
-    case Kinematics::kXyzacHeadTable:
-      return "xyzac-head-table";
-    case Kinematics::kXyzbcHeadTable:
-      return "xyzbc-head-table";
-  }
-  return "?";
+const char* KinematicsName(Kinematics k) { return Info(k).name; }
+
+std::vector<std::string> KinematicsNames() {
+  std::vector<std::string> names;
+  for (const KinematicsInfo& i : kKinematics) names.emplace_back(i.name);
+  return names;
 }
+
+std::optional<Kinematics> KinematicsNamed(std::string_view name) {
+  for (const KinematicsInfo& i : kKinematics) {
+    if (name == i.name) return i.kinematics;
+  }
+  return std::nullopt;
+}
+
+const char* AxisLetters(Kinematics k) { return Info(k).axes; }
+
+bool IsHeadTable(Kinematics k) { return Info(k).head_table; }
 
 XyzMachine::XyzMachine(std::string name, std::vector<Axis> axes, const KinematicsOptions& options)
     : name_(std::move(name)), axes_(std::move(axes)), options_(options) {}

@@ -43,6 +43,14 @@ enum class Kinematics : std::uint8_t {
 
 // The name machine files use ("xyzbc-trt").
 const char* KinematicsName(Kinematics k);
+// Every name machine files accept, for messages: the names above and "xyzac", the name of
+// xyzac-trt before the other 5-axis machines existed.
+std::vector<std::string> KinematicsNames();
+// The kinematics a machine file names, if it is one of KinematicsNames().
+std::optional<Kinematics> KinematicsNamed(std::string_view name);
+// The machine's axes in order: "XYZ", "XYZAC" or "XYZBC" (the tilting axis, then C).
+const char* AxisLetters(Kinematics k);
+bool IsHeadTable(Kinematics k);
 
 // Everything a machine is built from: what machine files and LinuxCNC INI files are read into, and
 // what `dtis machine import` writes back out. Units: mm, s, rad.
@@ -120,6 +128,8 @@ struct MachineLoadOptions {
   // For INI files whose axes have no MAX_JERK: jerk = MAX_ACCELERATION / jerk_time_s (s).
   std::optional<double> jerk_time_s;
 };
+// A path LoadMachineFile reads as a LinuxCNC INI file (it ends in .ini or .INI).
+bool IsLinuxcncIni(const std::string& path);
 std::unique_ptr<Machine> LoadMachineFile(const std::string& path,
                                          const MachineLoadOptions& options = {});
 MachineDescription ReadMachineDescription(const std::string& path,
