@@ -139,16 +139,23 @@ TEST(PathProjector, FindsTheCircleDistance) {
   }
 }
 
+// The circle at z = 5 fitted as LinuxCNC's G5.2 needs it: uniform knots, within 1 um.
+geometry::BSplineFitOptions G52FitOptions() {
+  geometry::BSplineFitOptions o;
+  o.tolerance.tip_mm = 0.001;
+  o.uniform_knots = true;
+  return o;
+}
+geometry::BSplineFit G52CircleFit() {
+  return geometry::FitCubicBSpline(geometry::SamplePath(Circle(5.0), 0.01, "circle"),
+                                   G52FitOptions(), "circle");
+}
+
 // LinuxCNC's G5.2: the first control point is the current position, one X Y P line per further
 // point, order L, knots 0 (k times), 1, 2, ..., n - k + 2 (k times). Re-read the text and evaluate
 // it that way.
 TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
-  const geometry::CurvePath circle = Circle(5.0);
-  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
-  geometry::BSplineFitOptions o;
-  o.tolerance.tip_mm = 0.001;
-  o.uniform_knots = true;
-  const geometry::BSplineFit fit = geometry::FitCubicBSpline(s, o, "circle");
+  const geometry::BSplineFit fit = G52CircleFit();
   const std::vector<io::SplinePass> passes{{&fit.bottom, nullptr, Vector3d::UnitZ()}};
   ASSERT_TRUE(io::PlanarXY(passes, 1e-9));
   const std::string text = io::FormatLinuxcncNurbs(passes, 3000.0, {20.0, 5.0}, {"circle"});
@@ -189,7 +196,7 @@ TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
       geometry::BSplineCurve({1, {0, 0, 1, 1}, {Vector3d(0, 0, 0), Vector3d(10, 0, 1)}, {}}),
       Vector3d::UnitZ());
   const auto fs = geometry::SamplePath(tilted, 0.1, "line");
-  const auto lf = geometry::FitCubicBSpline(fs, o, "line");
+  const auto lf = geometry::FitCubicBSpline(fs, G52FitOptions(), "line");
   try {
     io::FormatLinuxcncNurbs({{&lf.bottom, nullptr, Vector3d::UnitZ()}}, 3000.0, {20.0, 5.0}, {});
     FAIL();
@@ -204,12 +211,7 @@ TEST(Exports, LinuxcncNurbsReadsBackToTheSameMotion) {
   if (io::DefaultGcodeInterpreter() != io::GcodeInterpreter::kRs274ngc) {
     GTEST_SKIP() << "dtis was built without LinuxCNC's interpreter";
   }
-  const geometry::CurvePath circle = Circle(5.0);
-  const geometry::PathSamples s = geometry::SamplePath(circle, 0.01, "circle");
-  geometry::BSplineFitOptions o;
-  o.tolerance.tip_mm = 0.001;
-  o.uniform_knots = true;
-  const geometry::BSplineFit fit = geometry::FitCubicBSpline(s, o, "circle");
+  const geometry::BSplineFit fit = G52CircleFit();
   const std::string file = test::Scratch("circle_g52.ngc");
   std::ofstream(file) << io::FormatLinuxcncNurbs({{&fit.bottom, nullptr, Vector3d::UnitZ()}},
                                                  3000.0, {20.0, 5.0}, {"circle"});
