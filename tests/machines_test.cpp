@@ -12,6 +12,7 @@
 #include <random>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
 #include "test_support.hpp"
 
 namespace dtis {
@@ -370,6 +371,12 @@ TEST(LinuxcncIni, ErrorsNameTheFileLineAndKey) {
       },
       "m.ini:4: [TRAJ] COORDINATES: axis A of coordinates XYZA: a trivkins machine in dtis has "
       "the axes XYZ");
+  // A HAL file that cannot be read might set the pivots: never read as pivots at 0.
+  std::string trt = *ReadFileText(dir + "trt_inch.ini");
+  trt.replace(trt.find("HALFILE = trt_inch.hal"), 22, "HALFILE = no_such.hal");
+  test::ExpectError([&] { kinematics::ParseLinuxcncIni(trt, dir + "trt_inch.ini", o); },
+                    "trt_inch.ini:14: [HAL] HALFILE: cannot read " + dir +
+                        "no_such.hal, where xyzbc-trt-kins's pivots may be set");
   test::ExpectError([&] { kinematics::ParseLinuxcncIni("[TRAJ]\n", "m.ini", o); },
                     "m.ini: [KINS] KINEMATICS is missing");
 }

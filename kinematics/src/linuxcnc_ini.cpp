@@ -139,11 +139,13 @@ class HalPins {
     }
   }
 
-  void File(const std::string& path) {
+  // False when the file cannot be read.
+  bool File(const std::string& path) {
     const auto text = ReadFileText(path);
-    if (!text) return;  // LinuxCNC would refuse to start; the limits may still be wanted
+    if (!text) return false;
     std::istringstream in(*text);
     for (std::string line; std::getline(in, line);) Command(line);
+    return true;
   }
 
   std::optional<std::string> Value(const std::string& pin) const {
@@ -383,18 +385,22 @@ class IniMachineReader {
   void ReadPivots(const std::string& module, MachineDescription* d) const {
     HalPins pins(ini_);
     const std::filesystem::path dir = std::filesystem::path(name_).parent_path();
-    const auto hal_file = [&](const std::string& value) {
-      std::filesystem::path p = value;
-      if (value.rfind("LIB:", 0) == 0) {
-        p = std::filesystem::path("/usr/share/linuxcnc/hallib") / value.substr(4);
+    // A HAL file that cannot be read may hold the pivots: an error, never a pivot silently at 0
+    // (LinuxCNC would not start either). Tcl HAL files are not read.
+    const auto hal_file = [&](const IniFile::Entry& e) {
+      std::filesystem::path p = e.value;
+      if (e.value.rfind("LIB:", 0) == 0) {
+        p = std::filesystem::path("/usr/share/linuxcnc/hallib") / e.value.substr(4);
       } else if (p.is_relative()) {
         p = dir / p;
       }
-      if (p.extension() != ".tcl") pins.File(p.string());
+      if (p.extension() != ".tcl" && !pins.File(p.string())) {
+        Fail(e, fmt::format("cannot read {}, where {}'s pivots may be set", p.string(), module));
+      }
     };
-    for (const auto* e : ini_.All("HAL", "HALFILE")) hal_file(e->value);
+    for (const auto* e : ini_.All("HAL", "HALFILE")) hal_file(*e);
     for (const auto* e : ini_.All("HAL", "HALCMD")) pins.Command(e->value);
-    for (const auto* e : ini_.All("HAL", "POSTGUI_HALFILE")) hal_file(e->value);
+    for (const auto* e : ini_.All("HAL", "POSTGUI_HALFILE")) hal_file(*e);
     const auto pin = [&](const std::string& name, double fallback) {
       const auto v = pins.Value(module + "." + name);
       if (!v) return fallback;
