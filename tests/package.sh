@@ -5,6 +5,7 @@
 # - the installed dtis runs an installed sample, writes a report with the plotly.js installed
 #   beside it, has its manual page, and reads G-code with the dtis-rs274 installed beside it.
 set -euo pipefail
+trap 'echo "package: failed at line $LINENO: $BASH_COMMAND" >&2' ERR
 build=$1
 root=$2
 work=$(mktemp -d)
@@ -35,12 +36,16 @@ if [ -s "$prefix/share/dtis/plotly.min.js" ]; then  # not when npm was out of re
 else
   (cd "$work" && "$prefix/bin/dtis" run "$samples/jobs/line.toml" -o line.csv -q)
 fi
-"$prefix/bin/dtis" --version | grep -q "^dtis [0-9]"
+# Whole outputs are captured before grep: `cmd | grep -q` under pipefail fails whenever grep quits
+# before cmd has written its last line (cmd dies of SIGPIPE).
+version=$("$prefix/bin/dtis" --version)
+grep -q "^dtis [0-9]" <<<"$version"
 # LinuxCNC's interpreter, installed next to dtis (which looks there first), reads the G-code sample.
 if [ -x "$build/cli/dtis-rs274" ]; then
   test -x "$prefix/bin/dtis-rs274"
-  (cd "$work" && env -u DTIS_RS274 "$prefix/bin/dtis" run "$samples/jobs/lock.toml" -o lock.csv 2>&1) \
-    | grep -q "^interpreter *rs274ngc"
+  summary=$(cd "$work" && env -u DTIS_RS274 "$prefix/bin/dtis" run "$samples/jobs/lock.toml" \
+    -o lock.csv 2>&1)
+  grep -q "^interpreter *rs274ngc" <<<"$summary"
 fi
 
 cmake -S "$root/examples/plan" -B "$work/example" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" \

@@ -81,7 +81,7 @@ check_without_webgl() {
   grep -q "data-drawn2d=\"$want_plots\"" <<<"$body" ||
     problem="$problem; not every one of $want_plots plots drawn in SVG: $body"
   # The library's own text is in a script; the page's is not.
-  perl -0pe 's/<script.*?<\/script>//gs' "$work/$name.nogl.dom" | grep -q "WebGL is not supported" &&
+  grep -q "WebGL is not supported" < <(perl -0pe 's/<script.*?<\/script>//gs' "$work/$name.nogl.dom") &&
     problem="$problem; the page says WebGL is not supported"
   body=$(grep -o '<body[^>]*>' "$work/$name.dom")
   grep -q "data-drawn2d=\"$((want_plots - 1))\"" <<<"$body" ||
