@@ -18,7 +18,7 @@ file = "$1"
 interpreter = "rs274ngc"
 JOB
 }
-for program in freecad_post fusion_post mastercam_arcs inch inverse_time nurbs; do
+for program in freecad_post fusion_post mastercam_arcs inch inverse_time nurbs dwell; do
   job "$program.ngc"
   if ! summary=$("$dtis" run "$work/job.toml" -o "$work/out.csv" --horizon 256 -q 2>&1); then
     echo "FAIL $program: $summary"; failures=$((failures + 1)); continue

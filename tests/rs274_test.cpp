@@ -254,6 +254,7 @@ TEST(Rs274Records, ReadIntoMovesOrAClearError) {
   EXPECT_EQ(p.moves[2].tolerance_mm, 0.01);
   EXPECT_EQ(p.moves[3].kind, GcodeMove::Kind::kNurbs);
   EXPECT_TRUE(p.moves[3].rest_before);
+  EXPECT_EQ(p.moves[3].dwell_s, 0.5);
   EXPECT_EQ(p.moves[3].nurbs->poles.size(), 3u);
   ASSERT_EQ(p.notes.size(), 2u);
   for (const auto& [record, message] : std::vector<std::pair<std::string, std::string>>{
@@ -264,7 +265,8 @@ TEST(Rs274Records, ReadIntoMovesOrAClearError) {
            {"F 1 100\nN 2 4 0 0 0 0 2 0 0 1 1 1 1\nX\n", "at least as many control points"},
            {"L 2 1 0 0 0 0 0\nX\n", "p.ngc:2: a feed move with no feed rate"},
            {"E 9 Arc radius too small\n", "p.ngc:9: Arc radius too small"},
-           {"L x\n", "no line number"}}) {
+           {"L x\n", "no line number"},
+           {"D 3 -1\nX\n", "p.ngc:3: a dwell (G4) of -1 s: expected 0 to 1e6 s"}}) {
     test::ExpectError([&] { ParseRs274Records(record, "p.ngc"); }, message);
   }
 }

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <numbers>
 #include <random>
@@ -111,6 +112,57 @@ TEST(Stream, GcodeLinkMovesAtTheRapidFeed) {
   const double link_s = static_cast<double>(out.rows.size() - run.table.Rows()) * o.period_s;
   EXPECT_GT(link_s, 0.3);
   EXPECT_LT(link_s, 3.0) << "the link moved at a crawl";
+}
+
+// G4 holds the machine at rest for the dwell time, in the run and in the stream alike: the
+// program with its dwells plans the rows of the same program with dwells of no time (which still
+// stop the machine) plus the dwells' periods (a warm-up before the first cut, a pause at the
+// bottom of a plunge, two dwells in a row summed), and the stream sends those very rows.
+TEST(Stream, DwellsHoldAtRestInTheRunAndTheStream) {
+  const std::string machine = test::Source("samples/machines/mikron_ucp710_xyz.toml");
+  const auto job_for = [&](const std::string& name, bool dwells) {
+    std::ifstream in(test::Source("tests/data/gcode/dwell.ngc"));
+    std::ofstream program(test::Scratch(name + ".ngc"));
+    for (std::string line; std::getline(in, line);) {
+      program << (dwells || line.rfind("G4", 0) != 0 ? line : "G4 P0") << "\n";
+    }
+    program.close();
+    std::ofstream(test::Scratch(name + ".toml")) << fmt::format(
+        "machine = \"{}\"\n[path]\nkind = \"gcode\"\nfile = \"{}.ngc\"\n", machine, name);
+    io::Job job = io::LoadJob(test::Scratch(name + ".toml"));
+    job.vpop.commit_horizon = io::kStreamCommitHorizon;
+    return job;
+  };
+  const io::Job with = job_for("dwell", true), without = job_for("no_dwell", false);
+  const io::RunResult run = io::RunJob(with), plain = io::RunJob(without);
+  ASSERT_TRUE(run.verify.Passed());
+  // 0.4 s before the first cut, 0.25 s at the bottom, 0.1 + 0.15 s at a corner, at 1 ms.
+  EXPECT_EQ(run.table.Rows(), plain.table.Rows() + 400 + 250 + 250);
+  // The motion starts with the first move: the warm-up is before it.
+  EXPECT_NEAR(run.verify.motion_time_s, plain.verify.motion_time_s + 0.5, 1e-9);
+  // The rows are the plain ones with each dwell's rows inserted where it stands.
+  const auto rows = RowsOf(run.table), plain_rows = RowsOf(plain.table);
+  std::size_t r = 0, held = 0;
+  for (const auto& row : plain_rows) {
+    while (r < rows.size() && rows[r] != row) {
+      EXPECT_EQ(rows[r], rows[r - 1]) << "row " << r << " is neither planned nor held";
+      ++r, ++held;
+    }
+    ASSERT_LT(r, rows.size());
+    ++r;
+  }
+  EXPECT_EQ(held, 900u);
+  // Streamed = planned.
+  Capture out(run.machine->AxisCount());
+  const io::StreamResult streamed = StreamJob(with, *run.machine, &out);
+  EXPECT_EQ(streamed.end, io::StreamEnd::kComplete);
+  EXPECT_TRUE(out.rows == rows);
+  // The summary lists the dwells as held.
+  bool listed = false;
+  for (const auto& [what, count] : run.gcode_notes) {
+    if (what.find("dwell (G4): held at rest") != std::string::npos) listed = count == 4;
+  }
+  EXPECT_TRUE(listed);
 }
 
 // A chain of more than window_blocks blocks is streamed through a window (smoothed as it is

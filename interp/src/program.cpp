@@ -100,6 +100,11 @@ ProgramResult PlanProgram(const std::vector<ProgramSegment>& segments, const Mac
   return Stitch(segments, PlanSegments(segments, machine, options), machine);
 }
 
+long DwellRows(double seconds, double period_s) {
+  if (!(seconds > 0.0) || !(period_s > 0.0)) return 0;
+  return std::llround(seconds / period_s);
+}
+
 ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
                      std::vector<PlannedSegment> planned, const Machine& machine) {
   const int n = static_cast<int>(segments.size());
@@ -128,13 +133,18 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     }
     const Planned& p = planned[i];
     result.first_row.push_back(static_cast<long>(result.setpoints.size()));
-    // Each segment starts with the row the previous one ended on: keep one of them.
-    const std::size_t skip = k > 0 ? 1 : 0;
-    for (std::size_t r = skip; r < p.rows.size(); ++r) {
-      Setpoint sp = p.rows[r];
+    const auto append = [&](Setpoint sp) {
       sp.index = static_cast<long>(result.setpoints.size());
       result.setpoints.push_back(sp);
-    }
+    };
+    // Each segment starts with the row the previous one ended on: keep one of them.
+    if (k == 0) append(p.rows.front());
+    // A dwell: that row, held exactly where the machine is.
+    Setpoint held = p.rows.front();
+    held.q = result.setpoints.back().q;
+    const long hold = DwellRows(segments[i].dwell_before_s, segments[i].options.period_s);
+    for (long r = 0; r < hold; ++r) append(held);
+    for (std::size_t r = 1; r < p.rows.size(); ++r) append(p.rows[r]);
     result.segments.push_back(p.summary);
     VpopSummary& t = result.total;
     t.setpoints = static_cast<long>(result.setpoints.size());

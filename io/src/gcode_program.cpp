@@ -96,6 +96,7 @@ GcodeSegment GcodeSegments::ChainSegment() const {
   segment.rapid = chain_rapid_;
   segment.options = base_;
   segment.options.feed_mm_s = chain_feed_;
+  segment.dwell_before_s = chain_dwell_;
   return segment;
 }
 
@@ -191,6 +192,8 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
             "turn some tip motion)",
             file_, m.line);
       }
+      skipped_rest_ = skipped_rest_ || m.rest_before;
+      skipped_dwell_ += m.dwell_s;
       continue;  // a repeated point
     }
     Read r;
@@ -209,7 +212,8 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     c.line = m.line;
     r.tolerance_mm = m.tolerance_mm;
     r.stop = m.stop;
-    r.rest_before = m.rest_before;
+    r.rest_before = m.rest_before || std::exchange(skipped_rest_, false);
+    r.dwell_s = m.dwell_s + std::exchange(skipped_dwell_, 0.0);
     if (m.kind == GcodeMove::Kind::kNurbs) r.nurbs = NurbsCurve(*m.nurbs, file_, m.line);
     return r;
   }
@@ -236,6 +240,7 @@ void GcodeSegments::Open(const Read& r) {
   chain_axis_ = axis_;
   chain_feed_ = r.feed;
   chain_tolerance_ = r.tolerance_mm;
+  chain_dwell_ = r.dwell_s;
   chain_nurbs_ = r.nurbs;
   chain_first_line_ = r.move.line;
   chain_rapid_ = r.rapid;
@@ -337,7 +342,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
       plan.length_mm += *s->path->Length();
       ++plan.chains;
     }
-    plan.segments.push_back({s->path.get(), s->options, std::move(s->name)});
+    plan.segments.push_back({s->path.get(), s->options, std::move(s->name), s->dwell_before_s});
     plan.rapid.push_back(s->rapid);
     plan.paths.push_back(std::move(s->path));
   }

@@ -219,6 +219,7 @@ GcodeMove Rs274Reader::Move(int line, GcodeMove::Kind kind, const double* abc) {
   m.tolerance_mm = tolerance_mm_;
   m.stop = stop_;
   m.rest_before = std::exchange(rest_next_, false);
+  m.dwell_s = std::exchange(dwell_next_, 0.0);
   return m;
 }
 
@@ -228,6 +229,7 @@ std::optional<GcodeMove> Rs274Reader::Next() {
     ++records_;
     if (record_ == "X") {
       ended_ = true;
+      if (dwell_next_ > 0.0) Note("dwell (G4) after the last move: not held (nothing follows it)");
       const std::string died = Reap();
       if (!died.empty()) throw Error("{}: {}", file_, died);
       return std::nullopt;
@@ -266,8 +268,12 @@ std::optional<GcodeMove> Rs274Reader::Next() {
       case 'D': {
         double v;
         numbers(&v, 1);
+        if (!(v >= 0.0) || v > 1e6) {
+          Fail(static_cast<int>(line), fmt::format("a dwell (G4) of {} s: expected 0 to 1e6 s", v));
+        }
         rest_next_ = true;
-        Note("dwell (G4): the motion comes to rest there; the dwell time is not in the setpoints");
+        dwell_next_ += v;
+        Note("dwell (G4): held at rest for its time");
         continue;
       }
       case 'T':

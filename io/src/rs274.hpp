@@ -60,6 +60,7 @@ class Rs274Reader {
   // What the records set for the moves that follow.
   double feed_mm_min_ = 0.0, tolerance_mm_ = 0.0;
   bool stop_ = false, rest_next_ = false;
+  double dwell_next_ = 0.0;  // seconds of G4 since the last move
   std::array<bool, 3> uses_rotary_{};
   std::vector<std::pair<std::string, int>> notes_;
 };

@@ -164,7 +164,7 @@ class GcodeProducer {
     std::optional<GcodeSegment> s = segments_->Next();
     if (!s) return std::nullopt;
     return StreamSegment{std::shared_ptr<const PathSource>(std::move(s->path)), s->options,
-                         std::move(s->name)};
+                         std::move(s->name), -1, s->dwell_before_s};
   }
 
  private:
@@ -323,10 +323,12 @@ class SegmentSink final : public interp::SetpointSink {
  public:
   using Push = std::function<bool(std::vector<Entry>&&, std::vector<interp::Setpoint>&&)>;
   SegmentSink(const Machine& machine, const std::optional<AxisVector>& previous, long base,
-              int segment, int pass, long slow_us, const std::atomic<bool>& abort, Push push)
+              long hold, int segment, int pass, long slow_us, const std::atomic<bool>& abort,
+              Push push)
       : machine_(machine),
         previous_(previous),
         base_(base),
+        hold_(hold),
         segment_(segment),
         pass_(pass),
         slow_us_(slow_us),
@@ -335,17 +337,29 @@ class SegmentSink final : public interp::SetpointSink {
         shift_(AxisVector::Zero(machine.AxisCount())) {}
 
   void Accept(const interp::Setpoint& sp) override {
-    if (sp.index == 0 && previous_) {
-      misaligned_ = !Align(sp.q);
-      return;  // the row the previous segment ended on
+    if (sp.index != 0) {
+      Queue(sp);
+      return;
     }
-    Entry e{sp, segment_, pass_, nullptr};
-    e.sp.index = base_ + sp.index;
-    e.sp.q += shift_;
-    last_q_ = e.sp.q;
-    last_index_ = e.sp.index;
-    pending_.push_back(std::move(e));
-    if (slow_us_ > 0 && !abort_) std::this_thread::sleep_for(std::chrono::microseconds(slow_us_));
+    // The first row: where the previous segment ended (not streamed again), or where the job
+    // starts. A dwell holds it there, as interp::Stitch does.
+    AxisVector here = sp.q;
+    if (previous_) {
+      misaligned_ = !Align(sp.q);
+      if (misaligned_) return;
+      here = *previous_;
+    } else {
+      Queue(sp);
+    }
+    for (long r = 0; r < hold_; ++r) {
+      Entry e{sp, segment_, pass_, nullptr};
+      e.sp.q = here;
+      e.sp.index = base_ + 1 + r;
+      last_q_ = e.sp.q;
+      last_index_ = e.sp.index;
+      pending_.push_back(std::move(e));
+    }
+    base_ += hold_;
   }
   bool WantsStops() const override { return true; }
   void AcceptStop(const std::vector<interp::Setpoint>& stop) override {
@@ -366,6 +380,15 @@ class SegmentSink final : public interp::SetpointSink {
   long LastIndex() const { return last_index_; }
 
  private:
+  void Queue(const interp::Setpoint& sp) {
+    Entry e{sp, segment_, pass_, nullptr};
+    e.sp.index = base_ + sp.index;
+    e.sp.q += shift_;
+    last_q_ = e.sp.q;
+    last_index_ = e.sp.index;
+    pending_.push_back(std::move(e));
+    if (slow_us_ > 0 && !abort_) std::this_thread::sleep_for(std::chrono::microseconds(slow_us_));
+  }
   bool Align(const AxisVector& first) {
     const std::optional<AxisVector> shift = interp::TurnShift(machine_, *previous_, first);
     if (shift) shift_ = *shift;
@@ -374,7 +397,7 @@ class SegmentSink final : public interp::SetpointSink {
 
   const Machine& machine_;
   std::optional<AxisVector> previous_;
-  long base_;
+  long base_, hold_;
   int segment_, pass_;
   long slow_us_;
   const std::atomic<bool>& abort_;
@@ -459,7 +482,8 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
         std::optional<SegmentSink> sink;
         for (int attempt = 0; attempt < 2; ++attempt) {
           if (attempt == 1) options.previous_q = at;
-          sink.emplace(machine_, at, base, k, seg->pass, o_.slow_planner_us, abort_, push);
+          sink.emplace(machine_, at, base, interp::DwellRows(seg->dwell_before_s, options.period_s),
+                       k, seg->pass, o_.slow_planner_us, abort_, push);
           try {
             interp::PlanVpop(*seg->path, machine_, options, *sink);
           } catch (const Error& e) {

@@ -21,7 +21,13 @@ struct ProgramSegment {
   const PathSource* path = nullptr;  // used by one thread at a time
   VpopOptions options;               // per segment (feed differs for links)
   std::string name;                  // "pass 3", "link 2-3 retract", for messages
+  // Held at rest where the segment starts before it moves (a G-code dwell), s: rows repeating
+  // that position, rounded to whole periods.
+  double dwell_before_s = 0.0;
 };
+
+// The rows a dwell of `seconds` holds at rest, at `period_s`.
+long DwellRows(double seconds, double period_s);
 
 struct ProgramResult {
   std::vector<Setpoint> setpoints;  // indices renumbered 0, 1, ... over the whole program

@@ -38,10 +38,12 @@ struct GcodeMove {
   int turns = 1;
   // Path control (G61, G61.1, G64 P): the tip stays within this distance of the programmed
   // corners, mm; 0: the job's contour tolerance. `stop` (exact stop or exact path): the machine
-  // comes to rest at the end of this move. `rest_before`: at its start (after a dwell).
+  // comes to rest at the end of this move. `rest_before`: at its start (after a dwell), where it
+  // holds still `dwell_s` seconds (G4 P, the dwells since the previous move summed).
   double tolerance_mm = 0.0;
   bool stop = false;
   bool rest_before = false;
+  double dwell_s = 0.0;
   // G5.2 NURBS (LinuxCNC's interpreter only): the control points, from the start of the move to
   // `to`, their weights and the order (degree + 1); the knots are LinuxCNC's, clamped and uniform.
   struct Nurbs {

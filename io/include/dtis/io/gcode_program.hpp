@@ -82,9 +82,10 @@ struct GcodeSegment {
   interp::VpopOptions options;
   std::string name;  // "<file>: lines 12-40", "<file>:41: rapid", "<file>: lines 12- (...)"
   bool rapid = false;
-  int corners = 0;         // smoothed (not counted for a windowed chain)
-  bool windowed = false;   // more than window_blocks blocks: read as it is planned
-  bool five_axis = false;  // some block turns the tool axis away from where the chain starts
+  int corners = 0;              // smoothed (not counted for a windowed chain)
+  bool windowed = false;        // more than window_blocks blocks: read as it is planned
+  bool five_axis = false;       // some block turns the tool axis away from where the chain starts
+  double dwell_before_s = 0.0;  // G4: held at rest where the segment starts, before it moves
 };
 
 // A program's segments one at a time, each built from the moves it takes when it is asked for:
@@ -120,6 +121,7 @@ class GcodeSegments {
     double tolerance_mm = 0.0;  // the corners' contour tolerance (G64 P), 0: the job's
     bool stop = false;          // the machine comes to rest at the move's end (G61, G61.1)
     bool rest_before = false;   // and at its start (a dwell before it)
+    double dwell_s = 0.0;       // held at rest before it, s
     std::shared_ptr<const geometry::BSplineCurve> nurbs;  // G5.2: the curve, its own chain
   };
   std::optional<Read> ReadMove();
@@ -148,7 +150,10 @@ class GcodeSegments {
   std::vector<geometry::ChainMove> chain_;
   std::size_t chain_moves_ = 0;
   Eigen::Vector3d chain_tip_ = Eigen::Vector3d::Zero(), chain_axis_ = Eigen::Vector3d::UnitZ();
-  double chain_feed_ = 0.0, chain_tolerance_ = 0.0;
+  double chain_feed_ = 0.0, chain_tolerance_ = 0.0, chain_dwell_ = 0.0;
+  // A dwell before a move that goes nowhere (skipped) is held before the next one.
+  bool skipped_rest_ = false;
+  double skipped_dwell_ = 0.0;
   int chain_first_line_ = 0;
   bool chain_rapid_ = false, chain_five_axis_ = false;
   geometry::ChainMove last_;

@@ -30,8 +30,9 @@ namespace dtis::io {
 struct StreamSegment {
   std::shared_ptr<const PathSource> path;  // keeps what it points into alive
   interp::VpopOptions options;
-  std::string name;  // "pass 3", "link from pass 3 to pass 4", "contour 2"
-  int pass = -1;     // surface jobs: the pass (0-based); -1 for links and other paths
+  std::string name;             // "pass 3", "link from pass 3 to pass 4", "contour 2"
+  int pass = -1;                // surface jobs: the pass (0-based); -1 for links and other paths
+  double dwell_before_s = 0.0;  // held at rest before it moves (G4), as interp::Stitch holds it
 };
 
 class SegmentSource {
