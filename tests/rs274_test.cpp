@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <fstream>
 #include <numbers>
 #include <string>
 #include <utility>
@@ -191,10 +192,11 @@ TEST_F(Rs274, G64PIsTheContourTolerance) {
 // move's length times F.
 TEST_F(Rs274, InverseTimeFeedsArePerMove) {
   const GcodeProgram p = ReadGcode(Corpus("inverse_time.ngc"), GcodeInterpreter::kRs274ngc);
-  ASSERT_EQ(p.moves.size(), 5u);
-  EXPECT_DOUBLE_EQ(p.moves[2].feed_mm_min, 20.0 * 60.0);   // X20 in 1/60 min
-  EXPECT_DOUBLE_EQ(p.moves[3].feed_mm_min, 10.0 * 120.0);  // Y10 in 1/120 min
-  EXPECT_DOUBLE_EQ(p.moves[4].feed_mm_min, 1200.0);        // back in G94
+  ASSERT_EQ(p.moves.size(), 6u);
+  EXPECT_DOUBLE_EQ(p.moves[2].feed_mm_min, 20.0 * 60.0);                      // X20 in 1/60 min
+  EXPECT_DOUBLE_EQ(p.moves[3].feed_mm_min, 10.0 * 120.0);                     // Y10 in 1/120 min
+  EXPECT_NEAR(p.moves[4].feed_mm_min, std::numbers::pi * 10.0 * 30.0, 1e-9);  // a half circle
+  EXPECT_DOUBLE_EQ(p.moves[5].feed_mm_min, 1200.0);                           // back in G94
 }
 
 // G20: lengths and feeds in inches become mm.
@@ -225,6 +227,18 @@ TEST_F(Rs274, BadProgramsGiveLinuxCncsMessageWithFileAndLine) {
   test::ExpectError(
       [] { ReadGcode(test::Source("tests/data/gcode/missing.ngc"), GcodeInterpreter::kRs274ngc); },
       "missing.ngc");
+}
+
+// G5.2 in inverse time: LinuxCNC's interpreter gives the curve no feed (it converts F for lines
+// and arcs only), so it is an error that says so, at the G5.3 that ends the curve (the line
+// LinuxCNC gives the curve).
+TEST_F(Rs274, NurbsInInverseTimeIsAClearError) {
+  const std::string program = test::Scratch("nurbs_g93.ngc");
+  std::ofstream(program) << "G21 G90 G17\nG0 X0 Y0 Z0\nG93\nG5.2 X0 Y0 P1 L3 F30\n"
+                            "X10 Y0 P1\nX10 Y10 P1\nX20 Y10 P1\nG5.3\nG94\nM2\n";
+  test::ExpectError([&] { ReadGcode(program, GcodeInterpreter::kRs274ngc); },
+                    "nurbs_g93.ngc:8: a NURBS (G5.2) with no feed rate: LinuxCNC gives none in "
+                    "inverse time (G93)");
 }
 
 // A reader dropped before the program's end stops the interpreter (no process is left behind,

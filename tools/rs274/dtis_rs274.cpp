@@ -16,7 +16,8 @@
 //                                            axis, the axis (unit; turns > 0 counterclockwise about
 //                                            it), whole turns + 1
 //   N <line> order z a b c count x y w ...   NURBS in the XY plane (NURBS_FEED, G5.2)
-//   F <line> feed                            feed rate for what follows (inverse time: per move)
+//   F <line> feed                            feed rate for what follows (in inverse time, G93, the
+//                                            interpreter sets each move's own)
 //   P <line> mode tolerance                  path control: 1 exact stop (G61.1), 2 exact path
 //                                            (G61), 3 blending (G64) within tolerance mm, 0 none
 //   D <line> seconds                         dwell (G4)
@@ -78,8 +79,7 @@ struct Canon {
   double x = 0, y = 0, z = 0, a = 0, b = 0, c = 0, u = 0, v = 0, w = 0;
   double g5x[9] = {}, g92[9] = {};
   double xy_rotation = 0.0;  // degrees
-  double feed = 0.0;         // program units per minute (or inverse minutes in G93)
-  bool inverse_time = false;
+  double feed = 0.0;         // program units per minute (in G93 too: the interpreter converts)
   CANON_MOTION_MODE motion_mode = CANON_CONTINUOUS;
   double tolerance = 0.0;
   double traverse_rate = 1e9;
@@ -123,26 +123,8 @@ void Note(int line, const char* what) { std::printf("I %d %s\n", line, what); }
 
 int current_line = 0;  // the line of the block being executed, for calls without one
 
-// The feed for a move of `mm` (or, without a linear move, `deg`) in inverse time: per move.
-void FeedFor(int line, double mm, double deg) {
-  if (!canon.inverse_time) return;
-  const double length = mm > 0.0 ? mm : deg;
-  Record("F", line, {canon.feed * length});
-}
-
-double Distance(double x, double y, double z) {
-  return std::sqrt((x - canon.x) * (x - canon.x) + (y - canon.y) * (y - canon.y) +
-                   (z - canon.z) * (z - canon.z)) *
-         canon.units;
-}
-double Turned(double a, double b, double c) {
-  return std::sqrt((a - canon.a) * (a - canon.a) + (b - canon.b) * (b - canon.b) +
-                   (c - canon.c) * (c - canon.c));
-}
-
 void Straight(const char* kind, int line, double x, double y, double z, double a, double b,
               double c, double u, double v, double w) {
-  if (kind[0] == 'L') FeedFor(line, Distance(x, y, z), Turned(a, b, c));
   const Xyz p = ToMachine(x, y, z);
   Record(kind, line, {p.x, p.y, p.z, Angle(a, 3), Angle(b, 4), Angle(c, 5)});
   canon.x = x, canon.y = y, canon.z = z, canon.a = a, canon.b = b, canon.c = c;
@@ -175,18 +157,6 @@ void ARC_FEED(int line, double first_end, double second_end, double first_axis, 
   end[i1] = first_end, end[i2] = second_end, end[in] = axis_end_point;
   centre[i1] = first_axis, centre[i2] = second_axis, centre[in] = start[in];
   normal[in] = 1.0;
-  if (canon.inverse_time) {
-    const double r = std::hypot(start[i1] - first_axis, start[i2] - second_axis) * canon.units;
-    double sweep = std::atan2((start[i1] - first_axis) * (second_end - second_axis) -
-                                  (start[i2] - second_axis) * (first_end - first_axis),
-                              (start[i1] - first_axis) * (first_end - first_axis) +
-                                  (start[i2] - second_axis) * (second_end - second_axis));
-    if (rotation > 0 && sweep <= 0.0) sweep += 2.0 * M_PI;
-    if (rotation < 0 && sweep >= 0.0) sweep -= 2.0 * M_PI;
-    sweep = std::abs(sweep) + 2.0 * M_PI * (std::abs(rotation) - 1);
-    FeedFor(line, std::hypot(r * sweep, (axis_end_point - start[in]) * canon.units),
-            Turned(a, b, c));
-  }
   const Xyz e = ToMachine(end[0], end[1], end[2]);
   const Xyz k = ToMachine(centre[0], centre[1], centre[2]);
   const Xyz n = Rotated(normal[0], normal[1], normal[2]);
@@ -199,7 +169,6 @@ void ARC_FEED(int line, double first_end, double second_end, double first_axis, 
 
 void NURBS_FEED(int line, std::vector<CONTROL_POINT> points, unsigned int order) {
   if (points.empty()) return;
-  FeedFor(line, 0.0, 0.0);
   std::printf("N %d %u %.17g %.17g %.17g %.17g %zu", line, order, ToMachine(0, 0, canon.z).z,
               Angle(canon.a, 3), Angle(canon.b, 4), Angle(canon.c, 5), points.size());
   for (const CONTROL_POINT& p : points) {
@@ -231,7 +200,7 @@ void STOP_SPEED_FEED_SYNCH() {}
 
 void SET_FEED_RATE(double rate) {
   canon.feed = rate;
-  if (!canon.inverse_time) Record("F", current_line, {rate * canon.units});
+  Record("F", current_line, {rate * canon.units});
 }
 void SET_FEED_MODE(int, int mode) {
   if (mode != 0) START_SPEED_FEED_SYNCH(0, 0.0, false);
