@@ -5,6 +5,8 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <string>
@@ -239,6 +241,19 @@ TEST_F(Rs274, NurbsInInverseTimeIsAClearError) {
   test::ExpectError([&] { ReadGcode(program, GcodeInterpreter::kRs274ngc); },
                     "nurbs_g93.ngc:8: a NURBS (G5.2) with no feed rate: LinuxCNC gives none in "
                     "inverse time (G93)");
+}
+
+// Run from a terminal of a LinuxCNC session, the interpreter would read the session's INI
+// (INI_FILE_NAME): its log file, subroutine path, remaps and Python plugins. It must not: a
+// program reads the same wherever dtis runs.
+TEST_F(Rs274, IgnoresTheSessionsIni) {
+  const std::string ini = test::Scratch("session.ini"), log = test::Scratch("interp.log");
+  std::ofstream(ini) << "[RS274NGC]\nLOG_LEVEL = 1\nLOG_FILE = " << log << "\n";
+  ::setenv("INI_FILE_NAME", ini.c_str(), 1);
+  const GcodeProgram p = ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc);
+  ::unsetenv("INI_FILE_NAME");
+  EXPECT_GE(p.moves.size(), 4u);
+  EXPECT_FALSE(std::filesystem::exists(log)) << "the interpreter opened the session's log file";
 }
 
 // A reader dropped before the program's end stops the interpreter (no process is left behind,

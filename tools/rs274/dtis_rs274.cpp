@@ -412,6 +412,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: dtis-rs274 PROGRAM.ngc\n");
     return 2;
   }
+  // The interpreter reads the INI a LinuxCNC session names in the environment (its subroutine
+  // path, remaps, Python plugins, log file): a program must read the same wherever dtis runs.
+  ::unsetenv("INI_FILE_NAME");
   InterpBase* interp = makeInterp();
   const auto fail = [&](int status) -> int {
     char text[512] = {};
