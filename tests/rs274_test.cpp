@@ -256,6 +256,20 @@ TEST_F(Rs274, IgnoresTheSessionsIni) {
   EXPECT_FALSE(std::filesystem::exists(log)) << "the interpreter opened the session's log file";
 }
 
+// A subroutine in a file of its own (o<name> call), next to the program: found wherever dtis was
+// started (the interpreter looks in its working folder, which is the program's).
+TEST_F(Rs274, FindsSubroutineFilesNextToTheProgram) {
+  const std::filesystem::path folder = test::Scratch("subroutines");
+  std::filesystem::create_directories(folder);
+  std::ofstream(folder / "square.ngc") << "o<square> sub\nG1 X10 F600\nG1 Y10\n"
+                                          "o<square> endsub\nM2\n";
+  std::ofstream(folder / "main.ngc") << "G21 G90\nG0 X0 Y0 Z0\no<square> call\nM2\n";
+  ASSERT_NE(std::filesystem::current_path(), folder);
+  const GcodeProgram p = ReadGcode((folder / "main.ngc").string(), GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(p.moves.size(), 3u);
+  EXPECT_EQ(p.moves[2].to, Eigen::Vector3d(10, 10, 0));
+}
+
 // A reader dropped before the program's end stops the interpreter (no process is left behind,
 // and the next reader works).
 TEST_F(Rs274, ADroppedReaderStopsTheInterpreter) {

@@ -441,7 +441,19 @@ int main(int argc, char** argv) {
   std::remove((parameter_file + ".bak").c_str());
   ::rmdir(scratch.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
-  status = interp->open(argv[1]);
+  // Subroutines called by name (o<name> call) are looked for in the working folder: the
+  // program's own, so that files next to it are found wherever dtis was started.
+  std::string program = argv[1];
+  if (char* full = ::realpath(argv[1], nullptr)) {
+    program = full;
+    std::free(full);
+    const std::string folder = program.substr(0, program.find_last_of('/') + 1);
+    if (::chdir(folder.c_str()) != 0) {
+      std::printf("E 0 cannot enter the program's folder %s\n", folder.c_str());
+      return 1;
+    }
+  }
+  status = interp->open(program.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
   for (;;) {
     status = interp->read();
