@@ -211,14 +211,12 @@ GcodeMove Rs274Reader::Move(int line, GcodeMove::Kind kind, const double* abc) {
     if (abc[k] != 0.0) uses_rotary_[k] = true;
   }
   if (kind != GcodeMove::Kind::kRapid) {
-    if (!(feed_mm_min_ > 0.0) && kind == GcodeMove::Kind::kNurbs) {
-      // LinuxCNC's interpreter gives G5.2 no feed in inverse time (G93), whatever its F word.
-      Fail(line,
-           "a NURBS (G5.2) with no feed rate: LinuxCNC gives none in inverse time (G93); program "
-           "it in G94 with an F word");
-    }
     if (!(feed_mm_min_ > 0.0)) {
-      Fail(line, "a feed move with no feed rate (program an F word before it)");
+      // LinuxCNC's interpreter gives G5.2 no feed in inverse time (G93), whatever its F word.
+      Fail(line, kind == GcodeMove::Kind::kNurbs
+                     ? "a NURBS (G5.2) with no feed rate: LinuxCNC gives none in inverse time "
+                       "(G93); program it in G94 with an F word"
+                     : "a feed move with no feed rate (program an F word before it)");
     }
     m.feed_mm_min = feed_mm_min_;
   }

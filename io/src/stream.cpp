@@ -351,13 +351,11 @@ class SegmentSink final : public interp::SetpointSink {
     } else {
       Queue(sp);
     }
+    interp::Setpoint held = sp;
+    held.q = here;
     for (long r = 0; r < hold_; ++r) {
-      Entry e{sp, segment_, pass_, nullptr};
-      e.sp.q = here;
-      e.sp.index = base_ + 1 + r;
-      last_q_ = e.sp.q;
-      last_index_ = e.sp.index;
-      pending_.push_back(std::move(e));
+      held.index = base_ + 1 + r;
+      Add(held);
     }
     base_ += hold_;
   }
@@ -380,14 +378,19 @@ class SegmentSink final : public interp::SetpointSink {
   long LastIndex() const { return last_index_; }
 
  private:
+  // A planned row, numbered over the job and shifted onto the previous segment's turns.
   void Queue(const interp::Setpoint& sp) {
-    Entry e{sp, segment_, pass_, nullptr};
-    e.sp.index = base_ + sp.index;
-    e.sp.q += shift_;
-    last_q_ = e.sp.q;
-    last_index_ = e.sp.index;
-    pending_.push_back(std::move(e));
+    interp::Setpoint row = sp;
+    row.index = base_ + sp.index;
+    row.q += shift_;
+    Add(row);
     if (slow_us_ > 0 && !abort_) std::this_thread::sleep_for(std::chrono::microseconds(slow_us_));
+  }
+  // A row as it is handed over.
+  void Add(const interp::Setpoint& row) {
+    last_q_ = row.q;
+    last_index_ = row.index;
+    pending_.push_back(Entry{row, segment_, pass_, nullptr});
   }
   bool Align(const AxisVector& first) {
     const std::optional<AxisVector> shift = interp::TurnShift(machine_, *previous_, first);
