@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -110,6 +111,71 @@ TEST(ArcLength, RandomCurvesInvertWithinTolerance) {
   }
 }
 
+// A curve 1 km across (poles at the bound): a double resolves s only to about 1e-10 mm there, so
+// the map's tolerance follows s's resolution; the map ends, small, and inverts within it.
+TEST(ArcLength, KilometreCurveMapsWithinWhatADoubleResolves) {
+  BSplineCurveData d;
+  d.degree = 2;
+  d.knots = {0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1};
+  d.poles = {{0, 0, 0},     {0, 50, 0},  {100, 1e6, 0}, {100, 0, 0},
+             {100, -50, 0}, {0, -50, 0}, {0, 0, 0}};
+  d.weights = {1.0, 0.5, 0.5, 1.0, 0.5, 0.5, 1.0};
+  const BSplineCurve curve(d);
+  const geometry::CurvePath path(curve, Eigen::Vector3d::UnitZ());
+  EXPECT_GT(path.Map().Length(), 1e6);
+  EXPECT_LT(path.Map().Intervals(), 10000);
+  int hint = 0;
+  for (int i = 0; i <= 200; ++i) {
+    const double s = path.Map().Length() * i / 200.0;
+    const double u = path.Map().Parameter(s, &hint);
+    // The map's floor, 64 ulps of s, and as much again for the check's own quadrature sum.
+    const double floor = 64.0 * std::numeric_limits<double>::epsilon() * s;
+    ASSERT_NEAR(path.Map().Integrate(curve.FirstParameter(), u), s, 2.0 * std::max(1e-10, floor))
+        << "s = " << s;
+  }
+}
+
+// A speed that overflows, or a map that needs more pieces than allowed: an error, not a hang.
+TEST(ArcLength, RefusesWhatItCannotMap) {
+  const geometry::ArcLengthMap::Evaluator overflowing = [](double u, int order, Eigen::Vector3d* d,
+                                                           bool) {
+    for (int k = 0; k <= order; ++k) d[k] = Eigen::Vector3d(u, 0, 0) * 1e200;
+    d[1] = Eigen::Vector3d(1e200, 1e200, 0);  // |C'| overflows
+  };
+  try {
+    geometry::ArcLengthMap map(overflowing, {0.0, 1.0});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("speed |C'(u)| is not finite"), std::string::npos)
+        << e.what();
+  }
+  // A spiral whose speed grows so fast that no quintic piece is exact to 1e-10 mm in few pieces.
+  const geometry::ArcLengthMap::Evaluator spiral = [](double u, int order, Eigen::Vector3d* d,
+                                                      bool) {
+    const double r = std::exp(8 * u), w = 40.0;
+    d[0] = r * Eigen::Vector3d(std::cos(w * u), std::sin(w * u), 0);
+    if (order >= 1) {
+      d[1] = r * Eigen::Vector3d(8 * std::cos(w * u) - w * std::sin(w * u),
+                                 8 * std::sin(w * u) + w * std::cos(w * u), 0);
+    }
+    if (order >= 2) {
+      d[2] = r * Eigen::Vector3d((64 - w * w) * std::cos(w * u) - 16 * w * std::sin(w * u),
+                                 (64 - w * w) * std::sin(w * u) + 16 * w * std::cos(w * u), 0);
+    }
+  };
+  EXPECT_NO_THROW(geometry::ArcLengthMap(spiral, {0.0, 1.0}));
+  geometry::ArcLengthOptions tight;
+  tight.pieces_per_span = 2;
+  tight.min_piece_budget = 4;
+  try {
+    geometry::ArcLengthMap map(spiral, {0.0, 1.0}, tight);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("needs more than 4 pieces"), std::string::npos)
+        << e.what();
+  }
+}
+
 void ExpectError(BSplineCurveData d, const std::string& fragment) {
   try {
     BSplineCurve c(std::move(d), "test curve");
@@ -144,6 +210,13 @@ TEST(BSplineCurve, RejectsBadDefinitions) {
   d = good;
   d.poles[1].x() = NAN;
   ExpectError(d, "pole 1");
+  d = good;
+  d.poles[1].y() = 1e300;  // a typo or a unit error: refused, not planned for hours
+  ExpectError(d, "pole 1 (1, 1e+300, 0) is more than 1e+06 mm from the origin");
+  d.poles[1].y() = -1.000001e6;
+  ExpectError(d, "pole 1");
+  d.poles[1].y() = 1e6;
+  EXPECT_NO_THROW(BSplineCurve{d});
   d = good;
   d.knots = {0, 0, 0, 0.5, 0.5, 0.5, 1, 1, 1};
   d.poles = {{0, 0, 0}, {1, 1, 0}, {2, 0, 0}, {3, 1, 0}, {4, 0, 0}, {5, 1, 0}};

@@ -72,6 +72,14 @@ expect bad-knots "knots.toml:2: curve: knots must not decrease" -- "$dtis" run "
 sed 's/^knots = .*/knots = [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1]/; $a weights = [1, 1, -1, 1, 1, 1]' "$work/knots.toml" > "$work/w.toml"
 sed 's/knots.toml/w.toml/' "$work/curvejob.toml" > "$work/wjob.toml"
 expect bad-weight "w.toml:4: curve: weight 2 is -1" -- "$dtis" run "$work/wjob.toml" -o "$work/out.csv"
+# A pole out in space (a typo, a unit error): refused at once; one at the bound plans until
+# the path leaves the machine's travel, quickly (the arc-length map ends at s's resolution).
+sed 's/^knots = .*/knots = [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1]/; s/\[2, 0\]/[2, 1e300]/' "$work/knots.toml" > "$work/far.toml"
+sed 's/knots.toml/far.toml/' "$work/curvejob.toml" > "$work/farjob.toml"
+expect far-pole "far.toml:3: curve: pole 2 (2, 1e+300, 0) is more than 1e+06 mm from the origin" -- timeout 10 "$dtis" run "$work/farjob.toml" -o "$work/out.csv"
+sed 's/1e300/1e6/' "$work/far.toml" > "$work/km.toml"
+sed 's/knots.toml/km.toml/' "$work/curvejob.toml" > "$work/kmjob.toml"
+expect km-pole "outside its travel" -- timeout 10 "$dtis" run "$work/kmjob.toml" -o "$work/out.csv"
 printf 't,X,Y,Z\n0,0,0,0\n0.001,abc,0,0\n' > "$work/bad.csv"
 expect bad-csv "bad.csv:3: column 2 ('X') is not a finite number" -- "$dtis" verify "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
 expect_usage no-args "JOB is required" -- "$dtis" run

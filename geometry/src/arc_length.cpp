@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+
+#include "dtis/core/error.hpp"
 
 namespace dtis::geometry {
 namespace {
@@ -38,6 +41,9 @@ double Horner(const double* c, double t) {
 ArcLengthMap::ArcLengthMap(const Evaluator& derivatives, const std::vector<double>& breaks,
                            const ArcLengthOptions& options)
     : derivatives_(derivatives), options_(options), breaks_(breaks) {
+  piece_budget_ = std::max<std::size_t>(
+      static_cast<std::size_t>(options.min_piece_budget),
+      static_cast<std::size_t>(options.pieces_per_span) * (breaks.size() - 1));
   nodes_.push_back(MakeNode(breaks.front(), 0.0, false));
   for (std::size_t i = 1; i < breaks.size(); ++i) {
     const Node a = nodes_.back();
@@ -103,6 +109,12 @@ double ArcLengthMap::IntegrateSmooth(double u0, double u1) const {
     const Frame f = stack[--top];
     const double m = 0.5 * (f.a + f.b);
     const double left = gauss(f.a, m), right = gauss(m, f.b);
+    if (!std::isfinite(left + right)) {
+      throw Error(
+          "the curve's speed |C'(u)| is not finite for u in [{}, {}] (poles or weights "
+          "too far apart in size)",
+          f.a, f.b);
+    }
     if (std::abs(left + right - f.whole) <= 1e-14 * std::max(1.0, std::abs(f.whole)) ||
         f.depth >= 30 || top + 2 > static_cast<int>(stack.size())) {
       total += left + right;
@@ -123,6 +135,15 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
     return;
   }
   const auto coeff = HermiteCoefficients(a.u, a.du_ds, a.d2u_ds2, b.u, b.du_ds, b.d2u_ds2, h);
+  if (pieces_.size() >= piece_budget_) {
+    throw Error(
+        "the curve needs more than {} pieces to map its arc length to {} mm (near u = {}); "
+        "it is too long or too irregular to plan",
+        piece_budget_, options_.tolerance_mm, a.u);
+  }
+  // What a double resolves at this arc length bounds the tolerance from below.
+  const double tolerance = std::max(
+      options_.tolerance_mm, 64.0 * std::numeric_limits<double>::epsilon() * (std::abs(a.s) + h));
   double worst = 0.0;
   for (const double t : {0.25, 0.5, 0.75}) {
     const double u = Horner(coeff.data(), t);
@@ -132,7 +153,7 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
     }
     worst = std::max(worst, std::abs(a.s + Integrate(a.u, u) - (a.s + t * h)));
   }
-  if (worst > options_.tolerance_mm && depth < options_.max_depth && b.u - a.u > 1e-15) {
+  if (worst > tolerance && depth < options_.max_depth && b.u - a.u > 1e-15) {
     const double um = 0.5 * (a.u + b.u);
     const double sm = a.s + Integrate(a.u, um);
     Build(a, MakeNode(um, sm, true), depth + 1);

@@ -154,6 +154,12 @@ BSplineCurve::BSplineCurve(BSplineCurveData data, const std::string& what)
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (!poles_[i].allFinite()) throw Error("{}: pole {} is not finite", what, i);
+    if (poles_[i].cwiseAbs().maxCoeff() > kMaxPoleCoordinateMm) {
+      throw Error(
+          "{}: pole {} ({}, {}, {}) is more than {:g} mm from the origin on an axis; "
+          "no machine's travel reaches there (check the units)",
+          what, i, poles_[i].x(), poles_[i].y(), poles_[i].z(), kMaxPoleCoordinateMm);
+    }
   }
   if (!weights_.empty()) {
     if (weights_.size() != n) {

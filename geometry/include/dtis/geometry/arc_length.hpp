@@ -11,8 +11,14 @@
 namespace dtis::geometry {
 
 struct ArcLengthOptions {
-  double tolerance_mm = 1e-10;  // |s(u(s)) - s| at the checked points of every interval, mm
-  int max_depth = 40;           // bisections of one knot span
+  // |s(u(s)) - s| at the checked points of every interval, mm; never below what a double resolves
+  // at that arc length (64 ulps of s), so that a long curve's map ends.
+  double tolerance_mm = 1e-10;
+  int max_depth = 40;  // bisections of one knot span
+  // Pieces allowed per knot span, and in all (whichever is larger): a curve that needs more is
+  // refused (dtis::Error) rather than reparametrized for hours.
+  int pieces_per_span = 256;
+  int min_piece_budget = 1 << 16;
 };
 
 class ArcLengthMap {
@@ -22,7 +28,8 @@ class ArcLengthMap {
   using Evaluator = std::function<void(double, int, Eigen::Vector3d*, bool)>;
 
   // `breaks` are the parameters where the curve's derivatives may jump (its distinct knots),
-  // first and last included.
+  // first and last included. Throws dtis::Error when the curve's speed is not finite somewhere or
+  // the map would need more pieces than the options allow.
   ArcLengthMap(const Evaluator& derivatives, const std::vector<double>& breaks,
                const ArcLengthOptions& options = {});
 
@@ -37,7 +44,7 @@ class ArcLengthMap {
   double Parameter(double s, int* hint) const;
 
   // The exact arc length between two parameters (adaptive Gauss-Legendre on each piece between
-  // breaks, where the speed |C'| may jump).
+  // breaks, where the speed |C'| may jump). Throws dtis::Error where the speed is not finite.
   double Integrate(double u0, double u1) const;
 
   // The largest |s(u(s)) - s| seen while building, mm.
@@ -69,6 +76,7 @@ class ArcLengthMap {
   std::vector<double> breaks_;
   std::vector<Node> nodes_;
   std::vector<Piece> pieces_;
+  std::size_t piece_budget_ = 0;
   double max_error_mm_ = 0.0;
 };
 

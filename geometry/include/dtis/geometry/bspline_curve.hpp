@@ -12,6 +12,11 @@ namespace dtis::geometry {
 
 inline constexpr int kMaxCurveDegree = 15;
 
+// No pole lies farther than this from the origin on any axis: 1 km is beyond every machine tool's
+// travel, and a double there resolves about 1e-10 mm, the arc-length map's tolerance. Farther
+// poles (a typo, a unit error, a corrupt file) are refused instead of planned for hours.
+inline constexpr double kMaxPoleCoordinateMm = 1e6;
+
 // The poles, knots and weights that define a curve, as read from a file. Validated by BSplineCurve.
 struct BSplineCurveData {
   int degree = 3;
