@@ -4,7 +4,8 @@
 # the CNC received verifies as ONE sequence; an abort ends the job at rest and holds the queue
 # until "resume"; a pause holds at rest at the end of the current segment. A second daemon on a
 # live socket is refused; SIGTERM, SIGINT and SIGHUP mid-job end it at rest with its recording
-# complete, at three moments each; a stream whose parent ignores SIGINT still stops on it.
+# complete, at three moments each; a stream whose parent ignores SIGINT still stops on it. Bad
+# jobs are refused at submit, whole; abort is answered at once while a client floods requests.
 set -euo pipefail
 dtis=$1
 root=$2
@@ -28,11 +29,15 @@ start_daemon() {  # socket, extra arguments
   sock=$1
   shift
   "$dtis" serve --socket "$sock" --machine "$machine" "$@" 2>>"$out/serve.log" &
-  pids+=($!)
+  daemon=$!
+  pids+=("$daemon")
   for _ in $(seq 100); do [ -S "$sock" ] && return 0; sleep 0.05; done
   echo "dtis serve did not start" >&2
   cat "$out/serve.log" >&2
   return 1
+}
+at_rest() {  # csv: the last three rows hold the same position
+  test "$(tail -3 "$1" | cut -d, -f2- | sort -u | wc -l)" = 1
 }
 expect_error() {  # request, text the error must contain
   local reply rc=0
@@ -69,7 +74,7 @@ send '{"cmd":"status"}' | grep -q '"end":"complete".*"verified":true.*"end":"com
 test "$(wc -l <"$out/a.txt")" -eq "$(($(wc -l <"$out/all.csv") + 1))"  # + the repeated last line
 echo "serve: two jobs streamed back to back, linked, verified as one sequence"
 send '{"cmd":"shutdown"}' >/dev/null
-wait "${pids[0]}"
+wait "$daemon"
 test ! -e "$out/a.sock"
 
 # ---- abort, held queue, pause (real time)
@@ -93,7 +98,90 @@ send '{"cmd":"abort"}' >/dev/null
 wait_for '"id":2,"job":"[^"]*","end":"(aborted|complete)"' 30
 "$dtis" verify "$out/b/job-2.csv" "$machine" | tail -3
 send '{"cmd":"shutdown"}' >/dev/null
-wait "${pids[1]}"
+wait "$daemon"
+
+# ---- a job is read and checked whole before "ok": bad curves, programs and runaway keys are
+# refused at submit, at once, and the daemon goes on serving
+start_daemon "$out/v.sock" --to /dev/null --pace none
+printf 'degree = 2\nknots = [0, 0, 0, 1, 1, 1]\npoles = [[0, 0], [50, 1e300], [100, 0]]\n' >"$out/far_curve.toml"
+printf 'G21 G90 G94\nG1 X10 F1000\nG2 X20 Y0 R2\n' >"$out/bad_arc.ngc"
+job() {  # name, then the job's lines
+  local name=$1
+  shift
+  printf '%s\n' "machine = \"$machine\"" "$@" >"$out/$name.toml"
+  echo "$out/$name.toml"
+}
+submit_error() {  # job file, text the error must contain
+  local t0=$SECONDS
+  expect_error "{\"cmd\":\"submit\",\"job\":\"$1\"}" "$2"
+  ((SECONDS - t0 <= 1)) || { echo "refusing $1 took $((SECONDS - t0)) s" >&2; return 1; }
+}
+submit_error "$(job far 'feed_mm_min = 3000' '[path]' 'kind = "curve"' "file = \"$out/far_curve.toml\"")" \
+  "far_curve.toml:3: curve: pole 1 (50, 1e+300, 0) is more than 1e+06 mm"
+submit_error "$(job arc '[path]' 'kind = "gcode"' "file = \"$out/bad_arc.ngc\"")" "bad_arc.ngc:3"
+submit_error "$(job longdt 'period_ms = 300000' '[path]' 'kind = "line"' 'from = [0, 0, 0]' 'to = [10, 0, 0]')" \
+  "expected a period from 0.01 to 100 ms"
+submit_error "$(job crawl 'feed_mm_min = 1e-12' '[path]' 'kind = "line"' 'from = [0, 0, 0]' 'to = [10, 0, 0]')" \
+  "more than the 24 h a job may take"
+sed 's/^face = 1$/face = 4294967297/; s|"\.\./|"'"$root"'/samples/|' "$jobs/surface_plane_cl_3axis.toml" >"$out/face.toml"
+submit_error "$out/face.toml" "face"
+sed "s|^machine = .*|machine = \"/dev/zero\"|" "$out/crawl.toml" >"$out/zero.toml"
+submit_error "$out/zero.toml" "this CNC is"
+send '{"cmd":"status"}' | grep -q '"state":"idle".*"queue":\[\].*"done":\[\]'
+echo "serve: bad curves, programs and runaway keys refused at submit, the daemon still serving"
+send '{"cmd":"abort"}' >/dev/null  # hold the queue: jobs pile up
+line=$(job line 'feed_mm_min = 3000' '[path]' 'kind = "line"' 'from = [0, 0, 0]' 'to = [10, 0, 0]')
+for _ in $(seq 64); do send "{\"cmd\":\"submit\",\"job\":\"$line\"}" | grep -q '"ok":true'; done
+expect_error "{\"cmd\":\"submit\",\"job\":\"$line\"}" "64 jobs are queued, the most the daemon holds"
+send '{"cmd":"shutdown"}' >/dev/null
+wait "$daemon"
+echo "serve: the queue holds at most 64 jobs"
+
+# ---- control stays answerable: neither a client that floods requests without reading a reply,
+# nor a FIFO given as a job, nor a surface job being read delays an abort
+start_daemon "$out/d.sock" --to /dev/null --pace realtime --record-dir "$out/d"
+send "{\"cmd\":\"submit\",\"job\":\"$jobs/circle.toml\"}" >/dev/null
+wait_for '"state":"streaming".*"rows":[1-9][0-9][0-9]'
+python3 - "$out/d.sock" <<'PY' &
+import socket, sys
+s = socket.socket(socket.AF_UNIX)
+s.connect(sys.argv[1])
+while True:
+    s.sendall(b'{"cmd":"status"}\n' * 64)
+PY
+flood=$!
+pids+=("$flood")
+send "{\"cmd\":\"submit\",\"job\":\"$jobs/surface_plane_cl_3axis.toml\"}" >"$out/d.submit" &
+pids+=($!)
+mkfifo "$out/job.fifo"
+expect_error "{\"cmd\":\"submit\",\"job\":\"$out/job.fifo\"}" "is a FIFO, not a file"
+sleep 0.3  # the flood has filled every buffer between it and the daemon
+python3 - "$out/d.sock" "$out/abort_row" <<'PY'
+import json, socket, sys, time
+s = socket.socket(socket.AF_UNIX)
+s.connect(sys.argv[1])
+t0 = time.monotonic()
+s.sendall(b'{"cmd":"abort"}\n')
+lines = s.makefile()
+reply = lines.readline()
+ms = (time.monotonic() - t0) * 1e3
+s.sendall(b'{"cmd":"status"}\n')
+status = json.loads(lines.readline())
+print(f"serve: abort answered in {ms:.1f} ms, a client flooding: {reply.strip()}")
+with open(sys.argv[2], "w") as f:
+    f.write(str(status.get("current", {}).get("rows", 0)))
+sys.exit(0 if '"aborted":true' in reply and ms < 100 else 1)
+PY
+wait_for '"id":1,"job":"[^"]*","end":"aborted"'
+"$dtis" verify "$out/d/job-1.csv" "$machine" >"$out/d.verify"
+at_rest "$out/d/job-1.csv"
+# What the CNC already holds (--buffer, 200 periods) plays out, then the stop to rest.
+echo "serve: the machine at rest $(($(wc -l <"$out/d/job-1.csv") - 1 - $(cat "$out/abort_row"))) periods after the abort"
+wait_for '"state":"held".*"queue":\[{"id":2'  # the surface job, read while the circle streamed
+kill "$flood"
+send '{"cmd":"shutdown"}' >/dev/null
+wait "$daemon"
+echo "serve: the aborted stream ended at rest, $(grep -o 'worst ratio [0-9.]*' "$out/d.verify")"
 
 # ---- one daemon per socket; nothing that is not a socket is ever removed
 start_daemon "$out/c.sock" --to /dev/null --pace realtime
@@ -105,7 +193,7 @@ send "{\"cmd\":\"submit\",\"job\":\"$jobs/circle.toml\"}" >/dev/null
 wait_for '"state":"streaming"'
 send '{"cmd":"abort"}' | grep -q '"aborted":true'  # the first daemon still answers
 send '{"cmd":"shutdown"}' >/dev/null
-wait "${pids[2]}"
+wait "$daemon"
 echo precious >"$out/file.sock"
 rc=0
 "$dtis" serve --socket "$out/file.sock" --machine "$machine" --to /dev/null 2>"$out/file.err" || rc=$?
@@ -123,9 +211,6 @@ wait_rows() {  # until the current job has streamed at least N rows
   done
   echo "timed out waiting for $1 rows: $(send '{"cmd":"status"}')" >&2
   return 1
-}
-at_rest() {  # csv: the last three rows hold the same position
-  test "$(tail -3 "$1" | cut -d, -f2- | sort -u | wc -l)" = 1
 }
 # The circle (3 426 rows) plans at about 100x real time: no underrun even on a loaded machine.
 for sig in TERM INT HUP; do

@@ -1,7 +1,9 @@
 #include "dtis/io/serve.hpp"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -15,6 +17,8 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "dtis/core/error.hpp"
 #include "dtis/kinematics/machines.hpp"
@@ -24,9 +28,16 @@ namespace {
 
 using json = nlohmann::ordered_json;
 
+// Bounds that keep one client, or a burst of jobs, from taking the daemon over.
+constexpr std::size_t kMaxClients = 32;
+constexpr std::size_t kMaxLine = std::size_t{1} << 16;    // a request line
+constexpr std::size_t kMaxUnsent = std::size_t{1} << 16;  // replies not read yet: read no further
+constexpr std::size_t kMaxQueued = 64;                    // jobs waiting, each with its paths read
+
 struct QueuedJob {
   int id = 0;
   Job job;
+  std::unique_ptr<SegmentSource> segments;  // built when submitted: every file read and checked
 };
 
 struct Finished {
@@ -37,14 +48,24 @@ struct Finished {
   bool verified = false;
 };
 
-// The state shared by the socket thread and the job runner.
+// What the control loop does with a request line: reply at once, or (a submit) have the job
+// validated off the control path first, Daemon::Submit giving the reply.
+struct Answer {
+  std::string reply;
+  std::optional<std::string> job_file;
+};
+
+// The state shared by the control loop, the validator and the job runner.
 class Daemon {
  public:
   Daemon(const ServeOptions& o, CncOutput& out)
-      : o_(o), out_(out), machine_(kinematics::LoadMachineFile(o.machine_file, o.machine_options)), at_(o.from) {}
+      : o_(o),
+        out_(out),
+        machine_(kinematics::LoadMachineFile(o.machine_file, o.machine_options)),
+        at_(o.from) {}
 
-  // Handles one request line; never throws.
-  std::string Respond(const std::string& line) {
+  // Never throws, never waits for more than the daemon's lock, which nothing holds for long.
+  Answer Respond(const std::string& line) {
     json reply;
     try {
       const json request = json::parse(line);
@@ -52,26 +73,14 @@ class Daemon {
         throw Error("expected an object with a string \"cmd\"");
       }
       const std::string cmd = request["cmd"];
-      std::unique_lock lock(mutex_);
       if (cmd == "submit") {
         if (!request.contains("job") || !request["job"].is_string()) {
           throw Error("submit needs \"job\": the path of a job file");
         }
-        Job job = LoadJob(request["job"].get<std::string>());
-        if (std::filesystem::weakly_canonical(job.machine_file) !=
-            std::filesystem::weakly_canonical(o_.machine_file)) {
-          throw Error("{}: runs on {}, this CNC is {}", job.file, job.machine_file,
-                      o_.machine_file);
-        }
-        if (job.interpolator != InterpolatorKind::kVpop) {
-          throw Error("{}: only VPOp jobs can be streamed", job.file);
-        }
-        if (o_.planner) job.vpop.planner = *o_.planner;
-        const int id = ++last_id_;
-        queue_.push_back({id, std::move(job)});
-        reply = {{"ok", true}, {"id", id}, {"queued", queue_.size()}};
-        wake_.notify_all();
-      } else if (cmd == "status") {
+        return {"", request["job"].get<std::string>()};
+      }
+      std::unique_lock lock(mutex_);
+      if (cmd == "status") {
         reply = Status();
       } else if (cmd == "pause") {
         held_ = true;
@@ -97,6 +106,34 @@ class Daemon {
     } catch (const std::exception& e) {
       reply = {{"ok", false}, {"error", e.what()}};
     }
+    return {reply.dump(), std::nullopt};
+  }
+
+  // A submit: the job, its machine, and every file it reads (curve, program, STEP face, passes)
+  // loaded and checked as the stream will use them, then queued. The reply; never throws.
+  std::string Submit(const std::string& file) {
+    json reply;
+    try {
+      Job job = LoadJob(file);
+      if (std::filesystem::weakly_canonical(job.machine_file) !=
+          std::filesystem::weakly_canonical(o_.machine_file)) {
+        throw Error("{}: runs on {}, this CNC is {}", job.file, job.machine_file, o_.machine_file);
+      }
+      if (job.interpolator != InterpolatorKind::kVpop) {
+        throw Error("{}: only VPOp jobs can be streamed", job.file);
+      }
+      if (o_.planner) job.vpop.planner = *o_.planner;
+      CheckRoom();
+      auto segments = JobSegments(job, *machine_);
+      std::lock_guard lock(mutex_);
+      CheckRoomLocked();
+      const int id = ++last_id_;
+      queue_.push_back({id, std::move(job), std::move(segments)});
+      reply = {{"ok", true}, {"id", id}, {"queued", queue_.size()}};
+      wake_.notify_all();
+    } catch (const std::exception& e) {
+      reply = {{"ok", false}, {"error", e.what()}};
+    }
     return reply.dump();
   }
 
@@ -116,7 +153,7 @@ class Daemon {
         StreamOptions so = o_.stream;
         so.period_s = next.job.vpop.period_s;
         so.commit_horizon = StreamHorizon(next.job);
-        const auto segments = JobSegments(next.job, *machine_, at_);
+        next.segments->StartFrom(at_);
         std::optional<SetpointWriter> record;
         if (!o_.record_dir.empty()) {
           record.emplace(fmt::format("{}/job-{}.csv", o_.record_dir, next.id),
@@ -133,7 +170,7 @@ class Daemon {
         }
         StreamResult r;
         try {
-          r = stream.Run(*segments, out_, record ? &*record : nullptr);
+          r = stream.Run(*next.segments, out_, record ? &*record : nullptr);
         } catch (...) {
           std::lock_guard lock(mutex_);
           stream_ = nullptr;
@@ -177,6 +214,19 @@ class Daemon {
     quit_ = true;
     if (stream_) stream_->Abort();
     wake_.notify_all();
+  }
+
+  void CheckRoom() {
+    std::lock_guard lock(mutex_);
+    CheckRoomLocked();
+  }
+  void CheckRoomLocked() const {
+    if (quit_) throw Error("the daemon is shutting down");
+    if (queue_.size() >= kMaxQueued) {
+      throw Error(
+          "{} jobs are queued, the most the daemon holds; submit again once one has started",
+          kMaxQueued);
+    }
   }
 
   json Status() const {
@@ -278,13 +328,153 @@ void ClaimSocketPath(const std::string& path) {
   }
 }
 
+// Validates submitted jobs one after the other on a thread of its own, at a lower CPU priority
+// than the stream's planner (a job being read must never make the running one underrun), and
+// hands the replies back to the control loop, waking its poll.
+class Validator {
+ public:
+  explicit Validator(Daemon& daemon) : daemon_(daemon) {
+    if (pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) {
+      throw Error("dtis serve: pipe: {}", std::strerror(errno));
+    }
+    thread_ = std::thread([this] { Run(); });
+  }
+  ~Validator() {
+    {
+      std::lock_guard lock(mutex_);
+      quit_ = true;
+    }
+    todo_ready_.notify_all();
+    thread_.join();
+    ::close(wake_[0]);
+    ::close(wake_[1]);
+  }
+  Validator(const Validator&) = delete;
+  Validator& operator=(const Validator&) = delete;
+
+  void Add(std::uint64_t client, std::string job_file) {
+    {
+      std::lock_guard lock(mutex_);
+      todo_.push_back({client, std::move(job_file)});
+    }
+    todo_ready_.notify_all();
+  }
+  // Readable when replies are ready.
+  int WakeFd() const { return wake_[0]; }
+  // The replies ready, by client.
+  std::vector<std::pair<std::uint64_t, std::string>> TakeReplies() {
+    char drain[64];
+    while (::read(wake_[0], drain, sizeof(drain)) > 0) {
+    }
+    std::lock_guard lock(mutex_);
+    return std::exchange(replies_, {});
+  }
+
+ private:
+  void Run() {
+    setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);  // best effort
+    for (;;) {
+      std::pair<std::uint64_t, std::string> next;
+      {
+        std::unique_lock lock(mutex_);
+        todo_ready_.wait(lock, [&] { return quit_ || !todo_.empty(); });
+        if (quit_) return;
+        next = std::move(todo_.front());
+        todo_.pop_front();
+      }
+      std::string reply = daemon_.Submit(next.second);
+      {
+        std::lock_guard lock(mutex_);
+        replies_.emplace_back(next.first, std::move(reply));
+      }
+      (void)!::write(wake_[1], "r", 1);
+    }
+  }
+
+  Daemon& daemon_;
+  int wake_[2] = {-1, -1};
+  std::mutex mutex_;
+  std::condition_variable todo_ready_;
+  std::deque<std::pair<std::uint64_t, std::string>> todo_;
+  std::vector<std::pair<std::uint64_t, std::string>> replies_;
+  bool quit_ = false;
+  std::thread thread_;
+};
+
+// One connection. Its requests are answered in order: while its submit is validated, its next
+// lines wait; while it leaves kMaxUnsent bytes of replies unread, it is read no further (its own
+// writes then block, nobody else's).
+struct Client {
+  std::uint64_t serial = 0;
+  int fd = -1;
+  std::string in, out;
+  bool validating = false;
+  bool eof = false;  // the peer sent everything it will send
+
+  bool Readable() const { return !eof && !validating && out.size() < kMaxUnsent; }
+  bool Done() const { return fd < 0 || (eof && !validating && out.empty()); }
+
+  // Sends what it can without waiting; a peer gone closes the connection.
+  void Flush() {
+    while (fd >= 0 && !out.empty()) {
+      const ssize_t n = ::send(fd, out.data(), out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        out.erase(0, static_cast<std::size_t>(n));
+      } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {
+        return;
+      } else {
+        Close();
+      }
+    }
+  }
+  void Close() {
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+  }
+};
+
+// Answers the complete lines a client has sent, as far as its order and limits allow.
+void HandleLines(Client& c, Daemon& daemon, Validator& validator) {
+  for (std::size_t eol; c.fd >= 0 && !c.validating && c.out.size() < kMaxUnsent &&
+                        (eol = c.in.find('\n')) != std::string::npos;) {
+    Answer a = daemon.Respond(c.in.substr(0, eol));
+    c.in.erase(0, eol + 1);
+    if (a.job_file) {
+      c.validating = true;
+      validator.Add(c.serial, std::move(*a.job_file));
+    } else {
+      c.out += a.reply + "\n";
+    }
+  }
+  c.Flush();
+}
+
+// Reads what a client sent, without waiting.
+void ReadFrom(Client& c) {
+  char buf[4096];
+  const ssize_t n = ::recv(c.fd, buf, sizeof(buf), MSG_DONTWAIT);
+  if (n == 0) {
+    c.eof = true;
+  } else if (n < 0) {
+    if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) c.Close();
+  } else {
+    c.in.append(buf, static_cast<std::size_t>(n));
+    if (c.in.size() > kMaxLine && c.in.find('\n') == std::string::npos) {
+      c.out += R"({"ok":false,"error":"request longer than 64 KiB"})"
+               "\n";
+      c.in.clear();
+      c.eof = true;  // read no more; close once the error is sent
+    }
+  }
+}
+
 }  // namespace
 
 void Serve(const ServeOptions& options, CncOutput& out) {
   Daemon daemon(options, out);
   const sockaddr_un addr = Address(options.socket_path);
   ClaimSocketPath(options.socket_path);
-  const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (listener < 0) throw Error("socket: {}", std::strerror(errno));
   const mode_t old_mask = umask(0077);  // the socket file is the owner's only
   const int bound = bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
@@ -296,59 +486,70 @@ void Serve(const ServeOptions& options, CncOutput& out) {
   }
   if (options.listening) options.listening();
   std::thread runner([&] { daemon.RunJobs(); });
+  std::optional<Validator> validator;
+  validator.emplace(daemon);
 
-  struct Client {
-    int fd;
-    std::string in;
-  };
+  // The control loop: it never blocks on a client, a job file or a job, so that status, pause
+  // and abort are answered within a poll round, whatever else happens.
   std::vector<Client> clients;
+  std::uint64_t serial = 0;
   while (!daemon.Quit()) {
     if (options.stop && *options.stop) {
       daemon.Shutdown();
       break;
     }
-    std::vector<pollfd> fds{{listener, POLLIN, 0}};
-    for (const auto& c : clients) fds.push_back({c.fd, POLLIN, 0});
+    std::vector<pollfd> fds{{listener, POLLIN, 0}, {validator->WakeFd(), POLLIN, 0}};
+    for (const auto& c : clients) {
+      const short events =
+          static_cast<short>((c.Readable() ? POLLIN : 0) | (c.out.empty() ? 0 : POLLOUT));
+      // A client neither read nor written is not polled (a hang-up would wake the poll at once).
+      fds.push_back({events != 0 ? c.fd : -1, events, 0});
+    }
     if (poll(fds.data(), fds.size(), 20) < 0 && errno != EINTR) break;
-    if (fds[0].revents & POLLIN) {
-      const int fd = accept4(listener, nullptr, nullptr, SOCK_CLOEXEC);
-      if (fd >= 0 && SameUser(fd)) {
-        clients.push_back({fd, {}});
-      } else if (fd >= 0) {
-        ::close(fd);
+    for (std::size_t k = 0; k < clients.size(); ++k) {
+      Client& c = clients[k];
+      const short got = fds[k + 2].revents;
+      if (got & POLLOUT) c.Flush();
+      if (c.fd >= 0 && (got & (POLLIN | POLLHUP | POLLERR)) && c.Readable()) ReadFrom(c);
+      if (c.fd >= 0 && (got & POLLERR)) c.Close();
+      HandleLines(c, daemon, *validator);
+    }
+    if (fds[1].revents & POLLIN) {
+      for (auto& [to, reply] : validator->TakeReplies()) {
+        for (auto& c : clients) {
+          if (c.serial != to) continue;
+          c.validating = false;
+          c.out += reply + "\n";
+          HandleLines(c, daemon, *validator);
+        }
       }
     }
-    for (std::size_t k = 1; k < fds.size(); ++k) {
-      if (!(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
-      Client& c = clients[k - 1];
-      char buf[4096];
-      const ssize_t n = ::read(c.fd, buf, sizeof(buf));
-      if (n <= 0) {
-        ::close(c.fd);
-        c.fd = -1;
-        continue;
+    if (fds[0].revents & POLLIN) {
+      for (int fd; (fd = accept4(listener, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK)) >= 0;) {
+        if (!SameUser(fd)) {
+          ::close(fd);
+        } else if (clients.size() >= kMaxClients) {
+          const std::string busy = fmt::format(
+              R"({{"ok":false,"error":"{} clients are connected, the most the daemon serves"}})"
+              "\n",
+              kMaxClients);
+          (void)!::send(fd, busy.data(), busy.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+          ::close(fd);
+        } else {
+          clients.push_back({++serial, fd, {}, {}, false, false});
+        }
       }
-      c.in.append(buf, static_cast<std::size_t>(n));
-      if (c.in.size() > (1u << 16)) {  // no line that long is a request
-        const std::string reply = R"({"ok":false,"error":"request longer than 64 KiB"})"
-                                  "\n";
-        (void)!::write(c.fd, reply.data(), reply.size());
-        ::close(c.fd);
-        c.fd = -1;
-        continue;
-      }
-      for (std::size_t eol; (eol = c.in.find('\n')) != std::string::npos;) {
-        const std::string reply = daemon.Respond(c.in.substr(0, eol)) + "\n";
-        c.in.erase(0, eol + 1);
-        (void)!::write(c.fd, reply.data(), reply.size());
-      }
+    }
+    for (auto& c : clients) {
+      if (c.Done()) c.Close();
     }
     std::erase_if(clients, [](const Client& c) { return c.fd < 0; });
   }
-  for (const auto& c : clients) ::close(c.fd);
+  for (auto& c : clients) c.Close();
   ::close(listener);
   ::unlink(options.socket_path.c_str());
   runner.join();
+  validator.reset();  // waits for a job being read, if any
 }
 
 std::string SendRequest(const std::string& socket_path, const std::string& request) {

@@ -91,6 +91,7 @@ class ListSegments final : public SegmentSource {
       : next_(std::move(next)),
         linker_(machine, link, clearance, LinkCorners(link)),
         from_(std::move(from)) {}
+  void StartFrom(const std::optional<AxisVector>& from) override { from_ = from; }
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     if (!started_) {
@@ -184,6 +185,7 @@ class SurfaceSegments final : public SegmentSource {
     for (const auto& pass : setup_.passes.passes) length_mm += pass->Length().value_or(0.0);
     CheckMotionBound(job, length_mm);
   }
+  void StartFrom(const std::optional<AxisVector>& from) override { from_ = from; }
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     const auto& passes = setup_.passes.passes;

@@ -9,7 +9,10 @@
 //   {"cmd":"resume"}
 //   {"cmd":"abort"}   stop the current job with its stop to rest; the queue then waits for "resume"
 //   {"cmd":"shutdown"} abort, then exit
-// A malformed request, an unknown command or a job that does not load is answered with
+// A submit is answered once the whole job has been read and checked (curve, program, STEP face,
+// passes) on a thread of its own; control requests are answered at once whatever clients, job
+// files or jobs do (the control loop never blocks; per-client bounds on what it buffers). A
+// malformed request, an unknown command or a job that does not load is answered with
 // {"ok":false,"error":"..."} and changes nothing.
 #pragma once
 

@@ -41,6 +41,10 @@ class SegmentSource {
   // The next segment, to start where the machine is now (`at`, the last setpoint streamed; none
   // before the first), or nothing at the end of the job.
   virtual std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) = 0;
+  // Where the machine will be before the first segment, when that is known only after the source
+  // was built (a daemon validates a job when it is submitted and links it when it starts): a link
+  // leads from there, as from JobSegments' `from`. Call before the first Next.
+  virtual void StartFrom(const std::optional<AxisVector>& from) { (void)from; }
 };
 
 // The segments of any job, in the order `dtis run` plans them (passes and links of a surface job,
