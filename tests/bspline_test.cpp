@@ -135,6 +135,18 @@ TEST(ArcLength, KilometreCurveMapsWithinWhatADoubleResolves) {
   }
 }
 
+// Poles that all coincide (the fuzzer's find): |C'| is rounding noise, the length under the
+// tolerance; the map is a handful of linear pieces (it once bisected every span 40 times deep).
+TEST(ArcLength, CoincidentPolesMapAsAPoint) {
+  BSplineCurveData d;
+  d.degree = 3;
+  d.knots = {0, 0, 0, 0, 5.421010862427522e-19, 1, 1, 1, 1};
+  d.poles.assign(5, Eigen::Vector3d(-60, -60, -60));
+  const geometry::CurvePath path(BSplineCurve(d), Eigen::Vector3d::UnitZ());
+  EXPECT_LT(path.Map().Length(), 1e-10);
+  EXPECT_LE(path.Map().Intervals(), 4);
+}
+
 // A speed that overflows, or a map that needs more pieces than allowed: an error, not a hang.
 TEST(ArcLength, RefusesWhatItCannotMap) {
   const geometry::ArcLengthMap::Evaluator overflowing = [](double u, int order, Eigen::Vector3d* d,

@@ -134,6 +134,13 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
     nodes_.push_back(b_right);
     return;
   }
+  if (h <= options_.tolerance_mm) {
+    // Shorter than the tolerance (a curve whose poles all but coincide, where |C'| is rounding
+    // noise): any increasing u(s) is exact to within h, a line in s is one.
+    pieces_.push_back(Piece{a.s, 1.0 / h, {a.u, b.u - a.u, 0, 0, 0, 0}});
+    nodes_.push_back(b_right);
+    return;
+  }
   const auto coeff = HermiteCoefficients(a.u, a.du_ds, a.d2u_ds2, b.u, b.du_ds, b.d2u_ds2, h);
   if (pieces_.size() >= piece_budget_) {
     throw Error(
