@@ -44,6 +44,29 @@ TEST(Vpop, StraightLineMatchesTheJerkLimitedClosedForm) {
   EXPECT_EQ(p.points.back().s, 100.0);
 }
 
+// A motion that has not ended after max_motion_s is refused where it is, for both planners: 100 mm
+// at 50 mm/s takes 2 s, so a 0.5 s bound stops it about 25 mm in, naming the place and the feed.
+TEST(Vpop, AMotionLongerThanItsBoundIsRefusedWhereItIs) {
+  const auto machine = Cartesian(500.0, 2500.0, 5000.0);
+  const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
+  for (const auto planner : {interp::PlannerKind::kVpop, interp::PlannerKind::kLookAhead}) {
+    interp::VpopOptions o;
+    o.planner = planner;
+    o.feed_mm_s = 50.0;
+    o.max_motion_s = 0.5;
+    try {
+      Plan(line, *machine, o);
+      FAIL() << "expected an error";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("the motion has not ended after 0.5 s"), std::string::npos) << what;
+      EXPECT_NE(what.find("the feed is 50 mm/s here"), std::string::npos) << what;
+    }
+    o.max_motion_s = 2.5;
+    EXPECT_TRUE(Plan(line, *machine, o).report.Passed());
+  }
+}
+
 // Tangential limits far below the axis ones: the look-ahead and brake laws must plan with them, not
 // with the floor they take from the axis limits (a quarter of them). They once planned with the
 // floor: the tangential jerk case did not end within a minute (the back-off found no step to brake

@@ -97,6 +97,7 @@ bool VpopOptions::IsValid(std::string* why) const {
     return fail(fmt::format("max_search_evaluations must be >= 4, got {}", max_search_evaluations));
   }
   if (commit_horizon < 8) return fail("commit horizon must be at least 8 periods");
+  if (!(max_motion_s > 0.0)) return fail("the longest motion must be > 0 s");
   return true;
 }
 
@@ -1277,6 +1278,11 @@ VpopSummary Planner::Run() {
     const long j = Last();
     const History h = HistoryAt(j);
     if (Finished(h)) break;
+    if (static_cast<double>(j) * dt_ > o_.max_motion_s) {
+      FailAt(*h.p0, fmt::format("the motion has not ended after {:g} s, the most a path may take "
+                                "(the feed is {:.3g} mm/s here)",
+                                o_.max_motion_s, (h.p0->s - h.p1->s) / dt_));
+    }
     if (profile_) {
       profile_->Advance(h.p0->s, h.p0->state, h.p0->q, At(std::max(base_, committed_ - 3)).s);
       summary_.profile_grid_points = profile_->GridPoints();

@@ -45,6 +45,9 @@ const char* PlannerName(PlannerKind planner);
 // The planner PlannerName gives `name` ("vpop" or "lookahead"), if any.
 std::optional<PlannerKind> PlannerFromName(std::string_view name);
 
+// The longest motion one path may take, s (a day).
+inline constexpr double kMaxMotionS = 24.0 * 3600.0;
+
 struct VpopOptions {
   PlannerKind planner = PlannerKind::kVpop;
   LookAheadOptions look_ahead;  // planner = kLookAhead
@@ -79,6 +82,10 @@ struct VpopOptions {
   // the state and arc length asked (curves, G-code; a surface pass's warm-start cache makes its
   // last bits depend on the order of the solves). For tests and measurements.
   bool reuse_brake_runs = true;
+  // A path whose motion has not ended after this long is refused (dtis::Error naming where the
+  // feed went): a feed that collapses somewhere the look-ahead did not foresee must not plan, and
+  // fill memory, for ever; s.
+  double max_motion_s = kMaxMotionS;
   // Called every 256 steps planned with the arc length (mm) and time (s) the plan has reached, for
   // a progress display (a back-off may still take some of it back). From the planning thread.
   std::function<void(double, double)> progress;

@@ -80,9 +80,10 @@ struct Job {
 
 // Bounds every job is held to, so that a mistyped number is an error naming its key, never a run
 // that does not end: the period, and the least motion time the path can take at the job's feed and
-// tangential limits.
+// tangential limits (checked before planning; the planner itself refuses a motion that has not
+// ended after as long, wherever its feed collapses).
 inline constexpr double kMinPeriodMs = 0.01, kMaxPeriodMs = 100.0;
-inline constexpr double kMaxMotionHours = 24.0;
+inline constexpr double kMaxMotionHours = interp::kMaxMotionS / 3600.0;
 
 // The job's machine, read with the job's machine options.
 std::unique_ptr<Machine> LoadJobMachine(const Job& job);
