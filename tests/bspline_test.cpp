@@ -63,15 +63,17 @@ TEST(BSplineCurve, MatchesOpenCascadePointsAndDerivatives) {
   }
 }
 
-BSplineCurve NurbsCircle() {
+BSplineCurveData NurbsCircleData() {
   BSplineCurveData d;
   d.degree = 2;
   d.knots = {0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1};
   d.poles = {{0, 0, 0},     {0, 50, 0},  {100, 50, 0}, {100, 0, 0},
              {100, -50, 0}, {0, -50, 0}, {0, 0, 0}};
   d.weights = {1.0, 0.5, 0.5, 1.0, 0.5, 0.5, 1.0};
-  return BSplineCurve(d);
+  return d;
 }
+
+BSplineCurve NurbsCircle() { return BSplineCurve(NurbsCircleData()); }
 
 TEST(BSplineCurve, NurbsCircleHasRadius50Everywhere) {
   const BSplineCurve circle = NurbsCircle();
@@ -111,15 +113,12 @@ TEST(ArcLength, RandomCurvesInvertWithinTolerance) {
   }
 }
 
-// A curve 1 km across (poles at the bound): a double resolves s only to about 1e-10 mm there, so
-// the map's tolerance follows s's resolution; the map ends, small, and inverts within it.
+// A curve 1 km across (the circle with one pole at the bound): a double resolves s only to about
+// 1e-10 mm there, so the map's tolerance follows s's resolution; the map ends, small, and inverts
+// within it.
 TEST(ArcLength, KilometreCurveMapsWithinWhatADoubleResolves) {
-  BSplineCurveData d;
-  d.degree = 2;
-  d.knots = {0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1};
-  d.poles = {{0, 0, 0},     {0, 50, 0},  {100, 1e6, 0}, {100, 0, 0},
-             {100, -50, 0}, {0, -50, 0}, {0, 0, 0}};
-  d.weights = {1.0, 0.5, 0.5, 1.0, 0.5, 0.5, 1.0};
+  BSplineCurveData d = NurbsCircleData();
+  d.poles[2].y() = 1e6;
   const BSplineCurve curve(d);
   const geometry::CurvePath path(curve, Eigen::Vector3d::UnitZ());
   EXPECT_GT(path.Map().Length(), 1e6);

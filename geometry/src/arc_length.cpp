@@ -129,25 +129,23 @@ double ArcLengthMap::IntegrateSmooth(double u0, double u1) const {
 void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
   const double h = b.s - a.s;
   const Node b_right = MakeNode(b.u, b.s, false);
-  if (h <= 0.0) {  // a zero-length piece (repeated poles): it holds u constant
-    pieces_.push_back(Piece{a.s, 0.0, {a.u, 0, 0, 0, 0, 0}});
-    nodes_.push_back(b_right);
-    return;
-  }
+  // u linear in s across the piece.
+  const Piece line{a.s, 1.0 / h, {a.u, b.u - a.u, 0, 0, 0, 0}};
   if (h <= options_.tolerance_mm) {
-    // Shorter than the tolerance (a curve whose poles all but coincide, where |C'| is rounding
-    // noise): any increasing u(s) is exact to within h, a line in s is one.
-    pieces_.push_back(Piece{a.s, 1.0 / h, {a.u, b.u - a.u, 0, 0, 0, 0}});
+    // A zero-length piece (repeated poles) holds u constant. One shorter than the tolerance (poles
+    // that all but coincide, where |C'| is rounding noise) is exact to within h with any
+    // increasing u(s): a line in s.
+    pieces_.push_back(h > 0.0 ? line : Piece{a.s, 0.0, {a.u, 0, 0, 0, 0, 0}});
     nodes_.push_back(b_right);
     return;
   }
-  const auto coeff = HermiteCoefficients(a.u, a.du_ds, a.d2u_ds2, b.u, b.du_ds, b.d2u_ds2, h);
   if (pieces_.size() >= piece_budget_) {
     throw Error(
         "the curve needs more than {} pieces to map its arc length to {} mm (near u = {}); "
         "it is too long or too irregular to plan",
         piece_budget_, options_.tolerance_mm, a.u);
   }
+  const auto coeff = HermiteCoefficients(a.u, a.du_ds, a.d2u_ds2, b.u, b.du_ds, b.d2u_ds2, h);
   // What a double resolves at this arc length bounds the tolerance from below.
   const double tolerance = std::max(
       options_.tolerance_mm, 64.0 * std::numeric_limits<double>::epsilon() * (std::abs(a.s) + h));
@@ -169,8 +167,7 @@ void ArcLengthMap::Build(const Node& a, const Node& b, int depth) {
   }
   if (!std::isfinite(worst)) {
     // Could not split further (a stationary point): interpolate linearly in this tiny piece.
-    Piece piece{a.s, 1.0 / h, {a.u, b.u - a.u, 0, 0, 0, 0}};
-    pieces_.push_back(piece);
+    pieces_.push_back(line);
   } else {
     Piece piece{a.s, 1.0 / h, {}};
     std::copy(coeff.data(), coeff.data() + 6, piece.c);

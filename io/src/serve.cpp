@@ -119,12 +119,9 @@ class Daemon {
           std::filesystem::weakly_canonical(o_.machine_file)) {
         throw Error("{}: runs on {}, this CNC is {}", job.file, job.machine_file, o_.machine_file);
       }
-      if (job.interpolator != InterpolatorKind::kVpop) {
-        throw Error("{}: only VPOp jobs can be streamed", job.file);
-      }
       if (o_.planner) job.vpop.planner = *o_.planner;
       CheckRoom();
-      auto segments = JobSegments(job, *machine_);
+      auto segments = JobSegments(job, *machine_);  // refuses what cannot be streamed
       std::lock_guard lock(mutex_);
       CheckRoomLocked();
       const int id = ++last_id_;
