@@ -9,6 +9,7 @@
 #include "dtis/io/gcode.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
+#include "dtis/io/tool_table.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace {
@@ -21,6 +22,7 @@ namespace {
 #define DTIS_PARSER_limiters 6
 #define DTIS_PARSER_rs274 7
 #define DTIS_PARSER_machine_ini 8
+#define DTIS_PARSER_tool_table 9
 #define DTIS_CAT(a, b) a##b
 #define DTIS_SELECT(x) DTIS_CAT(DTIS_PARSER_, x)
 #define DTIS_PARSER DTIS_SELECT(DTIS_FUZZ_PARSER)
@@ -42,11 +44,13 @@ void Parse(std::string_view text) {
   dtis::io::ParseGcode(text, "fuzz.ngc");
 #elif DTIS_PARSER == DTIS_PARSER_rs274
   dtis::io::ParseRs274Records(text, "fuzz.ngc");
+#elif DTIS_PARSER == DTIS_PARSER_tool_table
+  dtis::io::ParseToolTable(text, "fuzz.tbl");
 #elif DTIS_PARSER == DTIS_PARSER_limiters
   dtis::io::ParseLimiters(text, "fuzz.csv", {"X", "Y", "Z", "A", "C"});
 #else
 #error \
-    "DTIS_FUZZ_PARSER must be job, curve, machine, machine_ini, setpoints, limiters, gcode or rs274"
+    "DTIS_FUZZ_PARSER must be job, curve, machine, machine_ini, setpoints, limiters, gcode, rs274 or tool_table"
 #endif
 }
 

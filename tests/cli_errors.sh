@@ -142,6 +142,18 @@ gcode_case gcode-end 'G0 X0 Y0\nG1 X10 F600\n' "" \
   "bad.ngc:2: File ended with no percent sign or program end"
 gcode_case gcode-exponent 'G0 X0 Y0\nG1 X1e300 F600\nM2\n' \
   "bad.ngc:2:4: word 'X1e300': G-code numbers have no exponent" "bad.ngc:2: E word with no G70"
+# A tool table: applied by LinuxCNC's interpreter only, and on XYZ machines only (a 5-axis
+# machine's tool length is part of its kinematics).
+printf 'T1 P1 Z40\n' > "$work/tools.tbl"
+printf 'G0 X0 Y0\nG43 H1\nG1 X10 F600\nM2\n' > "$work/bad.ngc"
+printf 'tool_table = "tools.tbl"\n' | cat "$work/gcode_dtis.toml" - > "$work/table_dtis.toml"
+expect table-dtis-reader "table_dtis.toml:6: key 'path.tool_table': tool length offsets are applied by LinuxCNC's interpreter" -- "$dtis" run "$work/table_dtis.toml" -o "$work/out.csv"
+if [ "$rs274" = rs274 ]; then
+  cp "$root/samples/machines/mikron_ucp710_xyzac.toml" "$work/"
+  sed 's/mikron_ucp710_xyz.toml/mikron_ucp710_xyzac.toml/' "$work/gcode.toml" |
+    cat - <(printf 'tool_table = "tools.tbl"\n') > "$work/table_5axis.toml"
+  expect table-5-axis "bad.ngc: the tool table $work/tools.tbl gives tool length offsets" -- "$dtis" run "$work/table_5axis.toml" -o "$work/out.csv"
+fi
 
 # --planner: one of the two, and only for the VPOp interpolator.
 expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"

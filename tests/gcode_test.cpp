@@ -4,11 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <string>
 
 #include "dtis/core/error.hpp"
+#include "dtis/io/tool_table.hpp"
+#include "test_support.hpp"
 
 namespace dtis::io {
 namespace {
@@ -126,6 +129,51 @@ TEST(Gcode, ReaderReportsABadBlockWhenItReachesIt) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "p.ngc:3:7: word 'Q' is not supported");
   }
+}
+
+// LinuxCNC tool tables: every word LinuxCNC writes, either case, '+' signs, comments.
+TEST(ToolTable, ReadsLinuxCncsFormat) {
+  const ToolTable t = ParseToolTable(
+      "; a comment line\n"
+      "T1 P1 D0.125000 Z+0.511000 ;1/8 end mill\n"
+      "\n"
+      "t2 p4 x0.5 y-1 z2 a1 b2 c3 u4 v5 w6 d1.5 i10 j20 q3\r\n"
+      "T99999 P123     Z+0.100000 ;big tool number\n"
+      "T0 P0 ;no tool\n"
+      "T5 Z7\n",
+      "sim.tbl");
+  ASSERT_EQ(t.tools.size(), 5u);
+  EXPECT_EQ(t.tools[0].tool, 1);
+  EXPECT_EQ(t.tools[0].line, 2);
+  EXPECT_DOUBLE_EQ(t.tools[0].offset[2], 0.511);
+  EXPECT_DOUBLE_EQ(t.tools[0].diameter, 0.125);
+  EXPECT_EQ(t.tools[1].pocket, 4);
+  const std::array<double, 9> two = {0.5, -1, 2, 1, 2, 3, 4, 5, 6};
+  EXPECT_EQ(t.tools[1].offset, two);
+  EXPECT_EQ(t.tools[2].tool, 99999);
+  EXPECT_EQ(t.tools[3].tool, 0);
+  EXPECT_EQ(t.tools[4].pocket, 5);  // P left out: the tool's own number
+}
+
+TEST(ToolTable, BadLinesNameTheFileLineAndWord) {
+  const auto bad = [](const std::string& text, const std::string& fragment) {
+    test::ExpectError([&] { ParseToolTable(text, "tool.tbl"); }, fragment);
+  };
+  bad("T1 P1 Z1\nT2 P2 Z1 K4\n", "tool.tbl:2: 'K4': expected a word T P X Y Z");
+  bad("T1 Zfoo\n", "tool.tbl:1: Z: expected a number, got 'foo'");
+  bad("T1 Z1 Z2\n", "tool.tbl:1: Z appears twice");
+  bad("P1 Z1\n", "tool.tbl:1: expected a tool number (T word)");
+  bad("T1.5 Z1\n", "tool.tbl:1: T: expected a whole number");
+  bad("T-1 Z1\n", "tool.tbl:1: T: expected a whole number");
+  bad("T1 Z1\n\nT1 Z2\n", "tool.tbl:3: tool T1 is already in the table, on line 1");
+  bad("T1 Z1e9\n", "tool.tbl:1: Z: expected an offset within ±100000 mm");
+  bad("T1 Znan\n", "tool.tbl:1: Z: expected a number");
+  bad("T1 D-3\n", "tool.tbl:1: D: expected a diameter");
+  bad("T1 Z++1\n", "tool.tbl:1: Z: expected a number");
+  bad("TOOLNO POCKET LENGTH DIAMETER COMMENT\n1 1 0.5 0.1\n",
+      "tool.tbl:1: this is the tool table format of LinuxCNC before 2.4");
+  test::ExpectError([] { LoadToolTable(test::Source("tests/data/gcode/missing.tbl")); },
+                    "missing.tbl: cannot open the tool table");
 }
 
 }  // namespace

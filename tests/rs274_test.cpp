@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <utility>
@@ -17,6 +18,7 @@
 #include "dtis/geometry/g1_path.hpp"
 #include "dtis/io/gcode.hpp"
 #include "dtis/io/gcode_program.hpp"
+#include "dtis/io/tool_table.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "test_support.hpp"
 
@@ -218,6 +220,72 @@ TEST_F(Rs274, ListsWhatMovesNothing) {
   EXPECT_NE(notes.find("tool change (M6)"), std::string::npos) << notes;
   EXPECT_NE(notes.find("spindle on (M3)"), std::string::npos) << notes;
   EXPECT_NE(notes.find("coolant (M8)"), std::string::npos) << notes;
+}
+
+// With a tool table, G43 H, G43 after M6, G43.2 and G49 move the controlled point as LinuxCNC's
+// canon layer does (program point + work offset + tool offset), in mm whatever G20/G21 says, and
+// an axis the block does not name stays where the machine is when the offset changes.
+TEST_F(Rs274, ToolTableOffsetsAreAppliedAsLinuxCncAppliesThem) {
+  const auto tools = std::make_shared<const ToolTable>(LoadToolTable(Corpus("tool_offsets.tbl")));
+  const GcodeProgram p = ReadGcode(Corpus("tool_offsets.ngc"), GcodeInterpreter::kRs274ngc, tools);
+  ASSERT_EQ(p.moves.size(), 6u);
+  const Vector3d expected[] = {{0, 0, 20},            // before G43
+                               {10, 0, 55},           // Z5 + tool 1's 50
+                               {25.4, 0, 12.7 + 50},  // G20: X1 Z0.5 in
+                               {30.5, 0, 62.7},       // G43.2 H2 adds X0.5 Z2; Z stays
+                               {40, 0, 62.7},         // G49
+                               {50.5, 0, 62.7}};      // T2 M6 G43: tool 2's X0.5
+  for (std::size_t k = 0; k < 6; ++k) {
+    EXPECT_LT((p.moves[k].to - expected[k]).norm(), 1e-12)
+        << "move " << k << " at line " << p.moves[k].line;
+  }
+  // Without a table the programmed tip is planned, and G43 is noted.
+  const GcodeProgram tip = ReadGcode(Corpus("tool_offsets.ngc"), GcodeInterpreter::kRs274ngc);
+  EXPECT_LT((tip.moves[1].to - Vector3d(10, 0, 5)).norm(), 1e-12);
+  EXPECT_LT((tip.moves[5].to - Vector3d(50, 0, 12.7)).norm(), 1e-12);
+}
+
+// M6 makes the interpreter ask where the machine is: after G55 moved the program frame, the
+// answer is the machine's position in the new frame, so the next block moves X only (dtis-rs274
+// once answered in the old frame, and Y jumped by G55's 50 mm).
+TEST_F(Rs274, AnOffsetChangeBeforeAToolChangeMovesNoOtherAxis) {
+  const GcodeProgram p = ReadGcode(Corpus("offset_then_m6.ngc"), GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(p.moves.size(), 2u);
+  EXPECT_LT((p.moves[1].to - Vector3d(105, 0, 10)).norm(), 1e-12);
+}
+
+// A post-processor's program with its tool table: every point from the G43 block on is the
+// program's without the table, raised by the tool length, except G28's return to the machine's
+// home, which is a machine position.
+TEST_F(Rs274, ToolTableRaisesAPostProcessorsProgramByTheToolLength) {
+  const auto tools = std::make_shared<const ToolTable>(LoadToolTable(Corpus("fusion_post.tbl")));
+  const GcodeProgram with =
+      ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kRs274ngc, tools);
+  const GcodeProgram without = ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(with.moves.size(), without.moves.size());
+  int raised = 0;
+  for (std::size_t k = 0; k < with.moves.size(); ++k) {
+    const Vector3d d = with.moves[k].to - without.moves[k].to;
+    const int line = with.moves[k].line;
+    const bool home = line == 29 && k + 1 == with.moves.size();  // G28 G91 Z0
+    const double rise = line >= 13 && !home ? 42.5 : 0.0;
+    EXPECT_LT((d - Vector3d(0, 0, rise)).norm(), 1e-12) << "line " << line;
+    raised += rise > 0;
+  }
+  EXPECT_GT(raised, 20);
+}
+
+// A tool the table does not have: LinuxCNC's message. dtis' own reader does not apply offsets.
+TEST_F(Rs274, AToolMissingFromTheTableIsLinuxCncsError) {
+  const auto tools = std::make_shared<const ToolTable>(ParseToolTable("T1 Z5\n", "t.tbl"));
+  test::ExpectError(
+      [&] {
+        ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kRs274ngc,
+                  std::make_shared<const ToolTable>(ParseToolTable("T2 Z5\n", "t.tbl")));
+      },
+      "fusion_post.ngc:8: Requested tool 1 not found in the tool table");
+  test::ExpectError([&] { ReadGcode(Corpus("fusion_post.ngc"), GcodeInterpreter::kDtis, tools); },
+                    "are applied by LinuxCNC's interpreter");
 }
 
 // A bad program: LinuxCNC's own message, with the file and the line.

@@ -292,11 +292,18 @@ class GcodeReader::Blocks {
   std::array<bool, 3> uses_rotary_{};
 };
 
-GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter)
+GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
+                         std::shared_ptr<const ToolTable> tools)
     : blocks_(std::make_unique<Blocks>(path)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path);
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools));
     return;
+  }
+  if (tools) {
+    throw Error(
+        "{}: tool length offsets from {} are applied by LinuxCNC's interpreter "
+        "(interpreter = \"rs274ngc\"); dtis' own reader plans the programmed tip",
+        path, tools->file);
   }
   RequireRegularFile(path);
   in_ = std::make_unique<std::ifstream>(path, std::ios::binary);
@@ -365,8 +372,9 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
   return ReadAll(reader);
 }
 
-GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter) {
-  GcodeReader reader(path, interpreter);
+GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
+                       std::shared_ptr<const ToolTable> tools) {
+  GcodeReader reader(path, interpreter, std::move(tools));
   return ReadAll(reader);
 }
 

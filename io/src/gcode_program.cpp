@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <utility>
@@ -10,6 +11,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/tool_table.hpp"
 
 namespace dtis::io {
 namespace {
@@ -80,7 +82,19 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
       axis_of_(file_, uses_rotary, machine),
       base_(base),
       options_(options),
-      rapid_feed_(RapidFeed(options, machine)) {}
+      rapid_feed_(RapidFeed(options, machine)) {
+  if (options.tool_table) {
+    const std::array<int, 3> rotary = RotaryWordAxes(machine);
+    if (std::any_of(rotary.begin(), rotary.end(), [](int axis) { return axis >= 0; })) {
+      throw Error(
+          "{}: the tool table {} gives tool length offsets, which dtis applies as LinuxCNC "
+          "does on an XYZ machine (a translation of the programmed tip); machine '{}' turns the "
+          "tool or the table, where the tool length belongs to its kinematics: leave tool_table "
+          "out and program the tip (TCP)",
+          file_, options.tool_table->file, machine.Name());
+    }
+  }
+}
 
 double RapidFeed(const GcodeOptions& options, const Machine& machine) {
   if (options.rapid_feed_mm_s > 0.0) return options.rapid_feed_mm_s;

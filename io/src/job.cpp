@@ -21,6 +21,7 @@
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/curve_file.hpp"
 #include "dtis/io/setpoint_file.hpp"
+#include "dtis/io/tool_table.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace dtis::io {
@@ -75,6 +76,16 @@ void ReadPath(TomlTable& root, Job* out) {
       job.path.gcode.interpreter = path.Choice("interpreter", {"rs274ngc", "dtis"}) == "dtis"
                                        ? GcodeInterpreter::kDtis
                                        : GcodeInterpreter::kRs274ngc;
+    }
+    if (auto table = path.OptionalString("tool_table")) {
+      if (job.path.gcode.interpreter != GcodeInterpreter::kRs274ngc) {
+        path.Fail("tool_table",
+                  "tool length offsets are applied by LinuxCNC's interpreter "
+                  "(interpreter = \"rs274ngc\"); dtis' own reader plans the "
+                  "programmed tip");
+      }
+      job.path.gcode.tool_table =
+          std::make_shared<const ToolTable>(LoadToolTable(ResolveRelative(job.file, *table)));
     }
     ReadCornerOptions(path, &job.path.gcode.corners);
     if (auto r = path.OptionalPositiveNumber("rapid_feed_mm_min")) {
@@ -659,7 +670,8 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   }
   ProgressMeter meter(options);
   meter.Phase("reading G-code");
-  const GcodeProgram program = ReadGcode(job.path.gcode_file, job.path.gcode.interpreter);
+  const GcodeProgram program =
+      ReadGcode(job.path.gcode_file, job.path.gcode.interpreter, job.path.gcode.tool_table);
   r->blocks = static_cast<int>(program.moves.size());
   r->gcode_notes = program.notes;
   meter.Phase("building contours");
@@ -788,6 +800,10 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
         fmt::format("program          {}: {} moves, {} contours, {} rapids, {} smoothed corners\n",
                     job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
     out += fmt::format("interpreter      {}\n", GcodeInterpreterName(job.path.gcode.interpreter));
+    if (const auto& tools = job.path.gcode.tool_table) {
+      out += fmt::format("tool table       {}: {} tools, G43 offsets applied\n", tools->file,
+                         tools->tools.size());
+    }
     for (const auto& [what, count] : r.gcode_notes) {
       out += fmt::format("                 {} x {}\n", count, what);
     }

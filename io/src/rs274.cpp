@@ -85,7 +85,8 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
   return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
 }
 
-Rs274Reader::Rs274Reader(const std::string& path) : file_(path) {
+Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools)
+    : file_(path) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
     throw Error("{}: cannot open the G-code file: {}", path, std::strerror(errno));
@@ -108,9 +109,22 @@ Rs274Reader::Rs274Reader(const std::string& path) : file_(path) {
   // The interpreter's own chatter (missing parameter file, Python) is not the program's.
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  std::string arg0 = program, arg1 = path;
-  char* argv[] = {arg0.data(), arg1.data(), nullptr};
-  const int spawned = ::posix_spawn(&pid_, program.c_str(), &actions, nullptr, argv, environ);
+  // dtis-rs274 PROGRAM [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: the table as read and checked
+  // here.
+  std::vector<std::string> args = {program, path};
+  if (tools) {
+    args.push_back("-t");
+    for (const ToolEntry& t : tools->tools) {
+      std::string arg = fmt::format("{}={}", t.tool, t.pocket);
+      for (const double v : t.offset) arg += fmt::format(",{:.17g}", v);
+      args.push_back(arg + fmt::format(",{:.17g}", t.diameter));
+    }
+  }
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const int spawned =
+      ::posix_spawn(&pid_, program.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   ::close(pipe_fds[1]);
   if (spawned != 0) {

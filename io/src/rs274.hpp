@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdio>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "dtis/io/gcode.hpp"
+#include "dtis/io/tool_table.hpp"
 
 namespace dtis::io {
 
@@ -22,9 +24,10 @@ std::string Rs274Program();
 
 class Rs274Reader {
  public:
-  // Starts the interpreter on the file at `path`. Throws dtis::Error when the file cannot be read
-  // or dtis-rs274 cannot be started.
-  explicit Rs274Reader(const std::string& path);
+  // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
+  // number exists, without offsets). Throws dtis::Error when the file cannot be read or
+  // dtis-rs274 cannot be started.
+  explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr);
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running

@@ -127,10 +127,11 @@ class GcodeProducer {
  public:
   GcodeProducer(const Job& job, const Machine& machine) : file_(job.path.gcode_file) {
     const GcodeInterpreter which = job.path.gcode.interpreter;
+    const std::shared_ptr<const ToolTable>& tools = job.path.gcode.tool_table;
     // In the order `dtis run` finds them: bad blocks, rotary words the machine lacks, corners.
     std::array<bool, 3> uses_rotary{};
     {
-      GcodeReader blocks(file_, which);
+      GcodeReader blocks(file_, which, tools);
       while (blocks.Next()) {
       }
       uses_rotary = blocks.UsesRotary();
@@ -142,7 +143,7 @@ class GcodeProducer {
     // Which long chains turn the tool: they are smoothed as 5-axis chains from their first move.
     std::vector<bool> five_axis;
     {
-      GcodeReader reader(file_, which);
+      GcodeReader reader(file_, which, tools);
       const auto scan = build(reader);
       scan->ScanOnly();
       while (const auto s = scan->Next()) {
@@ -150,14 +151,14 @@ class GcodeProducer {
       }
     }
     {
-      GcodeReader reader(file_, which);
+      GcodeReader reader(file_, which, tools);
       const auto all = build(reader);
       all->SetWindowedFiveAxis(five_axis);
       while (const auto s = all->Next()) {
         if (s->windowed) static_cast<const geometry::G1Path&>(*s->path).Check();
       }
     }
-    reader_ = std::make_unique<GcodeReader>(file_, which);
+    reader_ = std::make_unique<GcodeReader>(file_, which, tools);
     segments_ = build(*reader_);
     segments_->SetWindowedFiveAxis(std::move(five_axis));
   }

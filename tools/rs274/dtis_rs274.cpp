@@ -4,7 +4,12 @@
 // which is GPL-2: it is a separate program so that the dtis library keeps its own licence, and so
 // that an interpreter failure cannot take the planner (or a machine it feeds) down with it.
 //
-//   dtis-rs274 PROGRAM.ngc
+//   dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
+//
+// The arguments after -t are a tool table (dtis reads and checks the user's file, in mm
+// and degrees, io/src/tool_table.cpp); with one, G43/G43.2/G49 offsets move the controlled point
+// as LinuxCNC's canon layer moves it, added to every point written. Without one, every tool number
+// exists with no offsets, and G43 is noted: dtis plans the programmed tip.
 //
 // Records, one per line, numbers written with 17 significant digits; lengths in mm in the machine
 // frame (work offsets, G92 and the XY rotation applied, as LinuxCNC's canon layer applies them),
@@ -27,6 +32,7 @@
 // Exit status: 0 after X, 1 after E, 2 on bad usage.
 #include <unistd.h>
 
+#include <array>
 #include <canon.hh>
 #include <cmath>
 #include <cstdarg>
@@ -36,23 +42,40 @@
 #include <interp_base.hh>
 #include <interp_return.hh>
 #include <string>
+#include <vector>
 
 // The tool table the interpreter looks tools up in (G43 H, M6 T). LinuxCNC's libtooldata keeps it
 // in a memory map shared with a running LinuxCNC; this program must not touch that, so it answers
-// here (these definitions take the place of libtooldata's): every tool number exists, with no
-// offsets. dtis plans the tool tip; the machine applies tool length offsets.
+// here (these definitions take the place of libtooldata's). As LinuxCNC's non-random tool changer
+// lays it out, index 0 is the spindle (the tool M6 loaded) and the tools follow from index 1.
 CANON_TOOL_TABLE tooldata_entry_init() {
   CANON_TOOL_TABLE entry = {};
   entry.toolno = -1;
   entry.pocketno = -1;
   return entry;
 }
-int tooldata_find_index_for_tool(int toolno) { return toolno >= 0 ? toolno : -1; }
+namespace {
+bool tool_table_given = false;                               // the arguments named a tool table
+std::vector<CANON_TOOL_TABLE> tools = {CANON_TOOL_TABLE{}};  // [0]: the spindle, empty (T0)
+}  // namespace
+int tooldata_find_index_for_tool(int toolno) {
+  if (!tool_table_given) return toolno >= 0 ? toolno : -1;
+  if (toolno == 0) return 0;  // no tool
+  for (std::size_t i = 1; i < tools.size(); ++i) {
+    if (tools[i].toolno == toolno) return static_cast<int>(i);
+  }
+  return -1;
+}
 int tooldata_get(CANON_TOOL_TABLE* entry, int index) {
   *entry = tooldata_entry_init();
   if (index < 0) return -1;
-  entry->toolno = index;
-  entry->pocketno = index;
+  if (!tool_table_given) {  // every tool number exists, with no offsets
+    entry->toolno = index;
+    entry->pocketno = index;
+    return 0;
+  }
+  if (static_cast<std::size_t>(index) >= tools.size()) return -1;
+  *entry = tools[static_cast<std::size_t>(index)];
   return 0;
 }
 
@@ -70,14 +93,26 @@ int _task = 0;  // not LinuxCNC's task process
 
 namespace {
 
+// A pose of the nine axes X Y Z A B C U V W: mm and degrees in the machine frame, or program
+// units and degrees in the program's.
+using Pose = std::array<double, 9>;
+constexpr bool kLinear[9] = {true, true, true, false, false, false, true, true, true};
+
+Pose ToPose(const EmcPose& p) {
+  return {p.tran.x, p.tran.y, p.tran.z, p.a, p.b, p.c, p.u, p.v, p.w};
+}
+
 // The canon layer's state: what the interpreter told it and asks back.
 struct Canon {
   double units = 1.0;  // mm per program unit
   CANON_UNITS unit_type = CANON_UNITS_MM;
   CANON_PLANE plane = CANON_PLANE_XY;
-  // Position in program units and the work frame, as the interpreter reckons it.
-  double x = 0, y = 0, z = 0, a = 0, b = 0, c = 0, u = 0, v = 0, w = 0;
-  double g5x[9] = {}, g92[9] = {};
+  // Where the controlled point is, in the machine frame with every offset in force (as LinuxCNC's
+  // canon keeps its end point): the program position is derived from it with the offsets of the
+  // moment, so that it follows a change of work or tool offset as the interpreter expects.
+  Pose position{};
+  // Offsets in mm and degrees, converted from program units when they are set.
+  Pose g5x{}, g92{}, tool{};
   double xy_rotation = 0.0;  // degrees
   double feed = 0.0;         // program units per minute (in G93 too: the interpreter converts)
   CANON_MOTION_MODE motion_mode = CANON_CONTINUOUS;
@@ -85,33 +120,52 @@ struct Canon {
   double traverse_rate = 1e9;
   bool optional_stop = false, block_delete = false;
   int tool_slot = 0, selected_slot = 0;
-  EmcPose tool_offset = {};
   double spindle_speed = 0.0;
   CANON_DIRECTION spindle = CANON_STOPPED;
   int flood = 0, mist = 0;
 };
 Canon canon;
 
-struct Xyz {
-  double x, y, z;
-};
+double Scale(std::size_t k) { return kLinear[k] ? canon.units : 1.0; }
 
-// A program-frame point to the machine frame in mm: G92, the XY rotation, the work offset.
-Xyz ToMachine(double x, double y, double z) {
-  x = (x + canon.g92[0]) * canon.units;
-  y = (y + canon.g92[1]) * canon.units;
-  z = (z + canon.g92[2]) * canon.units;
+// A program point to the machine frame, as LinuxCNC's canon maps it: G92, the rotation about Z,
+// the work offset, the tool offset.
+Pose ToMachine(const Pose& program) {
+  Pose m;
+  for (std::size_t k = 0; k < 9; ++k) m[k] = program[k] * Scale(k) + canon.g92[k];
   const double r = canon.xy_rotation * M_PI / 180.0;
-  const double cr = std::cos(r), sr = std::sin(r);
-  return {cr * x - sr * y + canon.g5x[0] * canon.units,
-          sr * x + cr * y + canon.g5x[1] * canon.units, z + canon.g5x[2] * canon.units};
+  const double x = m[0], y = m[1];
+  m[0] = std::cos(r) * x - std::sin(r) * y;
+  m[1] = std::sin(r) * x + std::cos(r) * y;
+  for (std::size_t k = 0; k < 9; ++k) m[k] += canon.g5x[k] + canon.tool[k];
+  return m;
+}
+// The inverse: the program position of the machine pose `m` under the offsets in force.
+Pose ToProgram(const Pose& m) {
+  Pose p;
+  for (std::size_t k = 0; k < 9; ++k) p[k] = m[k] - canon.g5x[k] - canon.tool[k];
+  const double r = -canon.xy_rotation * M_PI / 180.0;
+  const double x = p[0], y = p[1];
+  p[0] = std::cos(r) * x - std::sin(r) * y;
+  p[1] = std::sin(r) * x + std::cos(r) * y;
+  for (std::size_t k = 0; k < 9; ++k) p[k] = (p[k] - canon.g92[k]) / Scale(k);
+  return p;
+}
+double ProgramPosition(std::size_t k) { return ToProgram(canon.position)[k]; }
+// A machine pose as written: without a tool table, dtis plans the programmed tip, so the tool
+// offset the interpreter set (G43.1, or G43 of a table LinuxCNC would hold) is taken back out.
+Pose Written(const Pose& m) {
+  Pose out = m;
+  if (!tool_table_given) {
+    for (std::size_t k = 0; k < 9; ++k) out[k] -= canon.tool[k];
+  }
+  return out;
 }
 // A direction (the arc's axis) to the machine frame.
-Xyz Rotated(double x, double y, double z) {
+std::array<double, 3> Rotated(double x, double y, double z) {
   const double r = canon.xy_rotation * M_PI / 180.0;
   return {std::cos(r) * x - std::sin(r) * y, std::sin(r) * x + std::cos(r) * y, z};
 }
-double Angle(double value, int k) { return value + canon.g92[k] + canon.g5x[k]; }
 
 void Record(const char* kind, int line, std::initializer_list<double> values) {
   std::printf("%s %d", kind, line);
@@ -123,12 +177,10 @@ void Note(int line, const char* what) { std::printf("I %d %s\n", line, what); }
 
 int current_line = 0;  // the line of the block being executed, for calls without one
 
-void Straight(const char* kind, int line, double x, double y, double z, double a, double b,
-              double c, double u, double v, double w) {
-  const Xyz p = ToMachine(x, y, z);
-  Record(kind, line, {p.x, p.y, p.z, Angle(a, 3), Angle(b, 4), Angle(c, 5)});
-  canon.x = x, canon.y = y, canon.z = z, canon.a = a, canon.b = b, canon.c = c;
-  canon.u = u, canon.v = v, canon.w = w;
+void Straight(const char* kind, int line, const Pose& program) {
+  canon.position = ToMachine(program);
+  const Pose p = Written(canon.position);
+  Record(kind, line, {p[0], p[1], p[2], p[3], p[4], p[5]});
 }
 
 }  // namespace
@@ -137,46 +189,50 @@ void Straight(const char* kind, int line, double x, double y, double z, double a
 
 void STRAIGHT_TRAVERSE(int line, double x, double y, double z, double a, double b, double c,
                        double u, double v, double w) {
-  Straight("T", line, x, y, z, a, b, c, u, v, w);
+  Straight("T", line, {x, y, z, a, b, c, u, v, w});
 }
 
 void STRAIGHT_FEED(int line, double x, double y, double z, double a, double b, double c, double u,
                    double v, double w) {
-  Straight("L", line, x, y, z, a, b, c, u, v, w);
+  Straight("L", line, {x, y, z, a, b, c, u, v, w});
 }
 
 void ARC_FEED(int line, double first_end, double second_end, double first_axis, double second_axis,
               int rotation, double axis_end_point, double a, double b, double c, double u, double v,
               double w) {
   // The plane's first and second axes and its normal (first x second): XY, YZ, ZX.
-  double end[3], centre[3], normal[3] = {0, 0, 0};
-  int i1 = 0, i2 = 1, in = 2;
+  std::size_t i1 = 0, i2 = 1, in = 2;
   if (canon.plane == CANON_PLANE_YZ) i1 = 1, i2 = 2, in = 0;
   if (canon.plane == CANON_PLANE_XZ) i1 = 2, i2 = 0, in = 1;
-  const double start[3] = {canon.x, canon.y, canon.z};
+  const Pose start = ToProgram(canon.position);
+  Pose end = {0, 0, 0, a, b, c, u, v, w};
   end[i1] = first_end, end[i2] = second_end, end[in] = axis_end_point;
+  Pose centre = end;  // a point on the arc's axis: in the start's plane
   centre[i1] = first_axis, centre[i2] = second_axis, centre[in] = start[in];
+  double normal[3] = {0, 0, 0};
   normal[in] = 1.0;
-  const Xyz e = ToMachine(end[0], end[1], end[2]);
-  const Xyz k = ToMachine(centre[0], centre[1], centre[2]);
-  const Xyz n = Rotated(normal[0], normal[1], normal[2]);
+  canon.position = ToMachine(end);
+  const Pose e = Written(canon.position);
+  const Pose k = Written(ToMachine(centre));
+  const std::array<double, 3> n = Rotated(normal[0], normal[1], normal[2]);
   Record("A", line,
-         {e.x, e.y, e.z, k.x, k.y, k.z, n.x, n.y, n.z, static_cast<double>(rotation), Angle(a, 3),
-          Angle(b, 4), Angle(c, 5)});
-  canon.x = end[0], canon.y = end[1], canon.z = end[2];
-  canon.a = a, canon.b = b, canon.c = c, canon.u = u, canon.v = v, canon.w = w;
+         {e[0], e[1], e[2], k[0], k[1], k[2], n[0], n[1], n[2], static_cast<double>(rotation), e[3],
+          e[4], e[5]});
 }
 
 void NURBS_FEED(int line, std::vector<CONTROL_POINT> points, unsigned int order) {
   if (points.empty()) return;
-  std::printf("N %d %u %.17g %.17g %.17g %.17g %zu", line, order, ToMachine(0, 0, canon.z).z,
-              Angle(canon.a, 3), Angle(canon.b, 4), Angle(canon.c, 5), points.size());
+  Pose program = ToProgram(canon.position);
+  const Pose at = Written(canon.position);
+  std::printf("N %d %u %.17g %.17g %.17g %.17g %zu", line, order, at[2], at[3], at[4], at[5],
+              points.size());
   for (const CONTROL_POINT& p : points) {
-    const Xyz q = ToMachine(p.X, p.Y, canon.z);
-    std::printf(" %.17g %.17g %.17g", q.x, q.y, p.W);
+    program[0] = p.X, program[1] = p.Y;
+    const Pose q = Written(ToMachine(program));
+    std::printf(" %.17g %.17g %.17g", q[0], q[1], p.W);
   }
   std::printf("\n");
-  canon.x = points.back().X, canon.y = points.back().Y;
+  canon.position = ToMachine(program);
 }
 
 void RIGID_TAP(int line, double, double, double, double) {
@@ -230,18 +286,27 @@ void USE_LENGTH_UNITS(CANON_UNITS u) {
 }
 void SET_G5X_OFFSET(int, double x, double y, double z, double a, double b, double c, double u,
                     double v, double w) {
-  const double o[9] = {x, y, z, a, b, c, u, v, w};
-  std::memcpy(canon.g5x, o, sizeof o);
+  canon.g5x = {x, y, z, a, b, c, u, v, w};
+  for (std::size_t k = 0; k < 9; ++k) canon.g5x[k] *= Scale(k);
 }
 void SET_G92_OFFSET(double x, double y, double z, double a, double b, double c, double u, double v,
                     double w) {
-  const double o[9] = {x, y, z, a, b, c, u, v, w};
-  std::memcpy(canon.g92, o, sizeof o);
+  canon.g92 = {x, y, z, a, b, c, u, v, w};
+  for (std::size_t k = 0; k < 9; ++k) canon.g92[k] *= Scale(k);
 }
 void SET_XY_ROTATION(double degrees) { canon.xy_rotation = degrees; }
 void USE_TOOL_LENGTH_OFFSET(EmcPose offset) {
-  canon.tool_offset = offset;
-  Note(current_line, "tool length offset (G43/G49): the machine applies it, dtis plans the tip");
+  // In program units; kept in mm, as a later G20/G21 does not change the offset in force.
+  canon.tool = ToPose(offset);
+  for (std::size_t k = 0; k < 9; ++k) canon.tool[k] *= Scale(k);
+  if (!tool_table_given) {
+    Note(current_line, "tool length offset (G43/G49): the machine applies it, dtis plans the tip");
+    return;
+  }
+  char what[160];
+  std::snprintf(what, sizeof what, "tool length offset (G43/G49) applied: X %g Y %g Z %g mm",
+                canon.tool[0], canon.tool[1], canon.tool[2]);
+  Note(current_line, what);
 }
 void SET_CUTTER_RADIUS_COMPENSATION(double) {}
 void START_CUTTER_RADIUS_COMPENSATION(int) {}
@@ -266,6 +331,10 @@ void SELECT_TOOL(int) {}
 void START_CHANGE() {}
 void CHANGE_TOOL(int slot) {
   canon.tool_slot = slot;
+  // The tool from `slot` (an index of the table) is now in the spindle, index 0.
+  if (tool_table_given && slot >= 0 && static_cast<std::size_t>(slot) < tools.size()) {
+    tools[0] = tools[static_cast<std::size_t>(slot)];
+  }
   Note(current_line, "tool change (M6): the program's tool is the job's");
 }
 void CHANGE_TOOL_NUMBER(int slot) { canon.tool_slot = slot; }
@@ -338,27 +407,28 @@ void CANON_ERROR(const char* fmt, ...) {
 
 double GET_EXTERNAL_FEED_RATE() { return canon.feed; }
 double GET_EXTERNAL_TRAVERSE_RATE() { return canon.traverse_rate; }
-double GET_EXTERNAL_LENGTH_UNITS() { return 1.0 / canon.units; }
+// The machine's length unit per mm: dtis' machines are in mm (tool tables, G28/G30 positions).
+double GET_EXTERNAL_LENGTH_UNITS() { return 1.0; }
 CANON_UNITS GET_EXTERNAL_LENGTH_UNIT_TYPE() { return canon.unit_type; }
 double GET_EXTERNAL_ANGLE_UNITS() { return 1.0; }
-double GET_EXTERNAL_POSITION_X() { return canon.x; }
-double GET_EXTERNAL_POSITION_Y() { return canon.y; }
-double GET_EXTERNAL_POSITION_Z() { return canon.z; }
-double GET_EXTERNAL_POSITION_A() { return canon.a; }
-double GET_EXTERNAL_POSITION_B() { return canon.b; }
-double GET_EXTERNAL_POSITION_C() { return canon.c; }
-double GET_EXTERNAL_POSITION_U() { return canon.u; }
-double GET_EXTERNAL_POSITION_V() { return canon.v; }
-double GET_EXTERNAL_POSITION_W() { return canon.w; }
-double GET_EXTERNAL_PROBE_POSITION_X() { return canon.x; }
-double GET_EXTERNAL_PROBE_POSITION_Y() { return canon.y; }
-double GET_EXTERNAL_PROBE_POSITION_Z() { return canon.z; }
-double GET_EXTERNAL_PROBE_POSITION_A() { return canon.a; }
-double GET_EXTERNAL_PROBE_POSITION_B() { return canon.b; }
-double GET_EXTERNAL_PROBE_POSITION_C() { return canon.c; }
-double GET_EXTERNAL_PROBE_POSITION_U() { return canon.u; }
-double GET_EXTERNAL_PROBE_POSITION_V() { return canon.v; }
-double GET_EXTERNAL_PROBE_POSITION_W() { return canon.w; }
+double GET_EXTERNAL_POSITION_X() { return ProgramPosition(0); }
+double GET_EXTERNAL_POSITION_Y() { return ProgramPosition(1); }
+double GET_EXTERNAL_POSITION_Z() { return ProgramPosition(2); }
+double GET_EXTERNAL_POSITION_A() { return ProgramPosition(3); }
+double GET_EXTERNAL_POSITION_B() { return ProgramPosition(4); }
+double GET_EXTERNAL_POSITION_C() { return ProgramPosition(5); }
+double GET_EXTERNAL_POSITION_U() { return ProgramPosition(6); }
+double GET_EXTERNAL_POSITION_V() { return ProgramPosition(7); }
+double GET_EXTERNAL_POSITION_W() { return ProgramPosition(8); }
+double GET_EXTERNAL_PROBE_POSITION_X() { return ProgramPosition(0); }
+double GET_EXTERNAL_PROBE_POSITION_Y() { return ProgramPosition(1); }
+double GET_EXTERNAL_PROBE_POSITION_Z() { return ProgramPosition(2); }
+double GET_EXTERNAL_PROBE_POSITION_A() { return ProgramPosition(3); }
+double GET_EXTERNAL_PROBE_POSITION_B() { return ProgramPosition(4); }
+double GET_EXTERNAL_PROBE_POSITION_C() { return ProgramPosition(5); }
+double GET_EXTERNAL_PROBE_POSITION_U() { return ProgramPosition(6); }
+double GET_EXTERNAL_PROBE_POSITION_V() { return ProgramPosition(7); }
+double GET_EXTERNAL_PROBE_POSITION_W() { return ProgramPosition(8); }
 double GET_EXTERNAL_PROBE_VALUE() { return 0.0; }
 int GET_EXTERNAL_PROBE_TRIPPED_VALUE() { return 0; }
 int GET_EXTERNAL_QUEUE_EMPTY() { return 1; }
@@ -381,18 +451,19 @@ int GET_EXTERNAL_TC_FAULT() { return 0; }
 int GET_EXTERNAL_TC_REASON() { return 0; }
 int GET_EXTERNAL_OFFSET_APPLIED() { return 0; }
 EmcPose GET_EXTERNAL_OFFSETS() { return EmcPose{}; }
-double GET_EXTERNAL_TOOL_LENGTH_XOFFSET() { return canon.tool_offset.tran.x; }
-double GET_EXTERNAL_TOOL_LENGTH_YOFFSET() { return canon.tool_offset.tran.y; }
-double GET_EXTERNAL_TOOL_LENGTH_ZOFFSET() { return canon.tool_offset.tran.z; }
-double GET_EXTERNAL_TOOL_LENGTH_AOFFSET() { return canon.tool_offset.a; }
-double GET_EXTERNAL_TOOL_LENGTH_BOFFSET() { return canon.tool_offset.b; }
-double GET_EXTERNAL_TOOL_LENGTH_COFFSET() { return canon.tool_offset.c; }
-double GET_EXTERNAL_TOOL_LENGTH_UOFFSET() { return canon.tool_offset.u; }
-double GET_EXTERNAL_TOOL_LENGTH_VOFFSET() { return canon.tool_offset.v; }
-double GET_EXTERNAL_TOOL_LENGTH_WOFFSET() { return canon.tool_offset.w; }
-CANON_TOOL_TABLE GET_EXTERNAL_TOOL_TABLE(int pocket) {
-  (void)pocket;
-  return tooldata_entry_init();
+double GET_EXTERNAL_TOOL_LENGTH_XOFFSET() { return canon.tool[0] / Scale(0); }
+double GET_EXTERNAL_TOOL_LENGTH_YOFFSET() { return canon.tool[1] / Scale(1); }
+double GET_EXTERNAL_TOOL_LENGTH_ZOFFSET() { return canon.tool[2] / Scale(2); }
+double GET_EXTERNAL_TOOL_LENGTH_AOFFSET() { return canon.tool[3] / Scale(3); }
+double GET_EXTERNAL_TOOL_LENGTH_BOFFSET() { return canon.tool[4] / Scale(4); }
+double GET_EXTERNAL_TOOL_LENGTH_COFFSET() { return canon.tool[5] / Scale(5); }
+double GET_EXTERNAL_TOOL_LENGTH_UOFFSET() { return canon.tool[6] / Scale(6); }
+double GET_EXTERNAL_TOOL_LENGTH_VOFFSET() { return canon.tool[7] / Scale(7); }
+double GET_EXTERNAL_TOOL_LENGTH_WOFFSET() { return canon.tool[8] / Scale(8); }
+CANON_TOOL_TABLE GET_EXTERNAL_TOOL_TABLE(int index) {
+  CANON_TOOL_TABLE entry;
+  tooldata_get(&entry, index);
+  return entry;
 }
 double GET_EXTERNAL_ANALOG_INPUT(int, double def) { return def; }
 int GET_EXTERNAL_DIGITAL_INPUT(int, int def) { return def; }
@@ -407,9 +478,41 @@ void GET_EXTERNAL_PARAMETER_FILE_NAME(char* name, int size) {
 
 // ---- The program. ----
 
+// "TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER" into a table entry; false when it is not one.
+bool ReadTool(const char* text, CANON_TOOL_TABLE* entry) {
+  *entry = tooldata_entry_init();
+  double v[10];
+  int used = 0;
+  if (std::sscanf(text, "%d=%d,%lf,%lf,%lf,%lf,%lf,%lf,%lf,%lf,%lf,%lf%n", &entry->toolno,
+                  &entry->pocketno, &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6], &v[7], &v[8],
+                  &v[9], &used) != 12 ||
+      text[used] != '\0') {
+    return false;
+  }
+  entry->offset.tran.x = v[0], entry->offset.tran.y = v[1], entry->offset.tran.z = v[2];
+  entry->offset.a = v[3], entry->offset.b = v[4], entry->offset.c = v[5];
+  entry->offset.u = v[6], entry->offset.v = v[7], entry->offset.w = v[8];
+  entry->diameter = v[9];
+  return true;
+}
+
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: dtis-rs274 PROGRAM.ngc\n");
+  if (argc < 2) {
+    std::fprintf(stderr,
+                 "usage: dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n");
+    return 2;
+  }
+  tool_table_given = argc > 2 && std::strcmp(argv[2], "-t") == 0;
+  for (int i = tool_table_given ? 3 : argc; i < argc; ++i) {
+    CANON_TOOL_TABLE entry;
+    if (!ReadTool(argv[i], &entry)) {
+      std::fprintf(stderr, "dtis-rs274: '%s' is not TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D\n", argv[i]);
+      return 2;
+    }
+    tools.push_back(entry);
+  }
+  if (argc > 2 && !tool_table_given) {
+    std::fprintf(stderr, "dtis-rs274: expected -t before the tool table, got '%s'\n", argv[2]);
     return 2;
   }
   // The interpreter reads the INI a LinuxCNC session names in the environment (its subroutine

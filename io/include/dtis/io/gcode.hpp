@@ -23,6 +23,7 @@
 namespace dtis::io {
 
 class Rs274Reader;
+struct ToolTable;  // tool_table.hpp
 
 struct GcodeMove {
   enum class Kind : std::uint8_t { kRapid, kLinear, kArcCw, kArcCcw, kNurbs };
@@ -77,9 +78,12 @@ struct GcodeProgram {
 // too long to hold: Next() throws dtis::Error "<file>:<line>:<column>: ..." at a bad block.
 class GcodeReader {
  public:
-  // Reads the file at `path` (throws when it cannot be opened) with `interpreter`.
+  // Reads the file at `path` (throws when it cannot be opened) with `interpreter`. With a tool
+  // table (LinuxCNC's interpreter only), G43 and G43.2 apply its tool length offsets to the moves
+  // that follow, as LinuxCNC does; without one, G43 is noted and the programmed tip is planned.
   explicit GcodeReader(const std::string& path,
-                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis);
+                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
+                       std::shared_ptr<const ToolTable> tools = nullptr);
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
   GcodeReader(std::string_view text, const std::string& source_name);
   ~GcodeReader();
@@ -108,7 +112,8 @@ class GcodeReader {
 
 // The whole program. Throws dtis::Error "<file>:<line>:<column>: ..." on the first bad block.
 GcodeProgram ReadGcode(const std::string& path,
-                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis);
+                       GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
+                       std::shared_ptr<const ToolTable> tools = nullptr);
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name);
 // The records dtis-rs274 writes (tools/rs274/dtis_rs274.cpp), as they would be read from it: for
 // tests and the fuzz target. Throws dtis::Error on the interpreter's error or a bad record.

@@ -29,6 +29,9 @@ namespace dtis::io {
 struct GcodeOptions {
   // Who reads the program: LinuxCNC's interpreter or dtis' built-in reader (gcode.hpp).
   GcodeInterpreter interpreter = DefaultGcodeInterpreter();
+  // LinuxCNC's interpreter only: G43/G43.2 apply this table's tool length offsets (the XYZ
+  // translation LinuxCNC adds to the controlled point); none: the programmed tip is planned.
+  std::shared_ptr<const ToolTable> tool_table;
   geometry::CornerOptions corners;
   // Feed of rapids (mm/s); 0: as fast as the machine's linear axes allow.
   double rapid_feed_mm_s = 0.0;
