@@ -222,10 +222,34 @@ checks=$((checks + 1))
 if "$dtis" run "$work/ini_ok.toml" -o "$work/ini.csv" -q &&
   "$dtis" verify "$work/ini.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null &&
   "$dtis" machine import "$work/mill.ini" --jerk-time-ms 20 -o "$work/mill.toml" &&
-  "$dtis" verify "$work/ini.csv" "$work/mill.toml" >/dev/null; then
+  "$dtis" verify "$work/ini.csv" "$work/mill.toml" >/dev/null &&
+  "$dtis" report "$work/ini.csv" "$work/mill.ini" --jerk-time-ms 20 -o "$work/ini.html" >/dev/null 2>&1 &&
+  test -s "$work/ini.html"; then
   echo "ok ini-machine-plans"
 else
   echo "FAIL ini-machine-plans"; failures=$((failures + 1))
+fi
+expect report-ini-no-jerk "mill.ini: neither [JOINT_0] nor [AXIS_X] gives MAX_JERK" -- "$dtis" report "$work/ini.csv" "$work/mill.ini" -o "$work/out.html"
+expect serve-ini-no-jerk "mill.ini: neither [JOINT_0] nor [AXIS_X] gives MAX_JERK" -- "$dtis" serve --machine "$work/mill.ini" --socket "$work/ini.sock" --to /dev/null
+# dtis serve on the INI machine with --jerk-time-ms takes the job planned for it and verifies it.
+checks=$((checks + 1))
+"$dtis" serve --machine "$work/mill.ini" --jerk-time-ms 20 --socket "$work/ini.sock" --to /dev/null \
+  --pace none 2>"$work/serve.err" &
+serve_pid=$!
+for _ in $(seq 100); do [ -S "$work/ini.sock" ] && break; sleep 0.05; done
+served=
+if "$dtis" send --socket "$work/ini.sock" "{\"cmd\":\"submit\",\"job\":\"$work/ini_ok.toml\"}" >/dev/null; then
+  for _ in $(seq 200); do
+    status=$("$dtis" send --socket "$work/ini.sock" '{"cmd":"status"}' || true)
+    if [[ "$status" == *'"end":"complete"'*'"verified":true'* ]]; then served=yes; break; fi
+    sleep 0.05
+  done
+fi
+kill "$serve_pid" 2>/dev/null; wait "$serve_pid" 2>/dev/null
+if [ -n "$served" ]; then
+  echo "ok serve-ini-machine"
+else
+  echo "FAIL serve-ini-machine: ${status:-no status} $(cat "$work/serve.err")"; failures=$((failures + 1))
 fi
 
 # Outputs a job names stay in the current folder; a setpoint file too short to verify is named.
