@@ -194,6 +194,12 @@ BENCHMARK_CAPTURE(SurfacePlan, plane_cl_3axis, "samples/jobs/surface_plane_cl_3a
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->Iterations(1);
+// A trimmed face of a real part (bench/jobs/trimmed_face.toml): the trim classification's cost.
+BENCHMARK_CAPTURE(SurfacePlan, trimmed_face, "bench/jobs/trimmed_face.toml")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 }  // namespace
 

@@ -104,7 +104,7 @@ def surface_table(b):
     rows = ["| benchmark | threads | time per job | real time | evaluations per setpoint | "
             "Newton iterations per setpoint |", "|---|---:|---:|---:|---:|---:|"]
     for family in ("Surface", "SurfacePlan"):
-        for sample in ("tilt10_xyzac", "plane_cl_3axis"):
+        for sample in ("tilt10_xyzac", "plane_cl_3axis", "trimmed_face"):
             for threads in (1, 2):
                 name = next((n for n in b if n.startswith(f"{family}/{sample}/{threads}")), None)
                 if not name:

@@ -536,6 +536,46 @@ TEST(SurfacePass, LeadingLineKeepsTheContactPointAtItsOffsetFromTheGuide) {
 namespace dtis {
 namespace {
 
+// The trim grid answers Inside exactly as OpenCASCADE's classifier does, on every trimmed face of
+// a real part (B-spline, plane, cylinder and cone faces with holes and slots), at random points of
+// each face's UV box and at points on and beside its boundary, and it answers for most of the box.
+TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
+  const StepModel part =
+      StepModel::Load(test::Source("samples/parts/occt_ec_turbine-A_53faces_rational.stp"));
+  std::mt19937 rng(20261125);
+  int trimmed = 0;
+  double coverage = 0.0;
+  for (int f = 1; f <= part.FaceCount(); ++f) {
+    const FaceSurface face(part.Face(f), "face " + std::to_string(f));
+    if (!face.Trimmed()) continue;
+    ++trimmed;
+    coverage += face.GridCoverage();
+    std::uniform_real_distribution<double> u(face.U0(), face.U1()), v(face.V0(), face.V1());
+    int disagree = 0;
+    for (int k = 0; k < 2000; ++k) {
+      const double a = u(rng), b = v(rng);
+      disagree += face.Inside(a, b) != face.InsideByClassifier(a, b);
+    }
+    // Next to the boundary, where the grid must hand over to the classifier.
+    const double eps = 1e-7 * std::max(face.U1() - face.U0(), face.V1() - face.V0());
+    for (const auto& loop : face.Boundary(40)) {
+      for (const Eigen::Vector2d& p : loop) {
+        for (const Eigen::Vector2d d :
+             {Eigen::Vector2d(0, 0), Eigen::Vector2d(eps, 0), Eigen::Vector2d(-eps, 0),
+              Eigen::Vector2d(0, eps), Eigen::Vector2d(0, -eps)}) {
+          const Eigen::Vector2d q = p + d;
+          disagree += face.Inside(q.x(), q.y()) != face.InsideByClassifier(q.x(), q.y());
+        }
+      }
+    }
+    EXPECT_EQ(disagree, 0) << face.Where();
+  }
+  EXPECT_GE(trimmed, 10);
+  EXPECT_GT(coverage / trimmed, 0.5);
+  std::printf("trim grid: %d trimmed faces, %.0f %% of their UV boxes answered by the grid\n",
+              trimmed, 100.0 * coverage / trimmed);
+}
+
 // A trimmed face: a disc of radius 20 mm cut from the plane z = 0. A ball end's passes in planes
 // x = c are the chords of the disc: they start and end on the trimming circle and are
 // 2 sqrt(R^2 - c^2) long (a closed form independent of the strategies' code).

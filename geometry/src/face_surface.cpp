@@ -94,7 +94,96 @@ FaceSurface::FaceSurface(const TopoDS_Face& face, std::string where)
   if (trimmed_) {
     const double tol = 1e-9 * std::max({1.0, u1_ - u0_, v1_ - v0_});
     classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
+    BuildTrimGrid();
   }
+}
+
+void FaceSurface::BuildTrimGrid() {
+  constexpr int kCells = 256;
+  const double du = u1_ - u0_, dv = v1_ - v0_;
+  if (!(du > 0.0) || !(dv > 0.0)) return;
+  // In cell units: x = (u - u0) / du * n.
+  const auto cell_xy = [&](const gp_Pnt2d& p) {
+    return Eigen::Vector2d((p.X() - u0_) / du * kCells, (p.Y() - v0_) / dv * kCells);
+  };
+  std::vector<TrimGrid::Cell> cells(kCells * kCells, TrimGrid::kIn);
+  const auto mark = [&](Eigen::Vector2d a, Eigen::Vector2d b, double widen) {
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - widen)));
+    const int x1 =
+        std::min(kCells - 1, static_cast<int>(std::floor(std::max(a.x(), b.x()) + widen)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - widen)));
+    const int y1 =
+        std::min(kCells - 1, static_cast<int>(std::floor(std::max(a.y(), b.y()) + widen)));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x)
+        cells[static_cast<std::size_t>(y * kCells + x)] = TrimGrid::kBoundary;
+    }
+  };
+  for (TopExp_Explorer e(face_, TopAbs_EDGE); e.More(); e.Next()) {
+    double f = 0, l = 0;
+    const Handle(Geom2d_Curve) pc =
+        BRep_Tool::CurveOnSurface(TopoDS::Edge(e.Current()), face_, f, l);
+    if (pc.IsNull() || !std::isfinite(f) || !std::isfinite(l)) return;  // no grid: classify all
+    // Halve the chords until every chord's midpoint lies within a tenth of a cell of the curve's.
+    double stray = 0.0;
+    std::vector<Eigen::Vector2d> points;
+    for (int segments = 16;; segments *= 2) {
+      points.clear();
+      stray = 0.0;
+      for (int k = 0; k <= segments; ++k)
+        points.push_back(cell_xy(pc->Value(f + (l - f) * k / segments)));
+      for (int k = 0; k < segments; ++k) {
+        const Eigen::Vector2d mid = cell_xy(pc->Value(f + (l - f) * (k + 0.5) / segments));
+        stray = std::max(stray, (mid - 0.5 * (points[k] + points[k + 1])).norm());
+      }
+      if (!std::isfinite(stray)) return;
+      if (stray < 0.1 || segments >= 4096) break;
+    }
+    if (stray >= 0.1) return;  // a curve the sampling cannot follow: no grid
+    for (std::size_t k = 0; k + 1 < points.size(); ++k)
+      mark(points[k], points[k + 1], 2.0 * stray + 1e-6);
+  }
+  // One side per connected region of cells the boundary does not come near.
+  std::vector<std::uint8_t> seen(cells.size(), 0);
+  std::vector<int> stack;
+  for (int start = 0; start < kCells * kCells; ++start) {
+    if (cells[static_cast<std::size_t>(start)] == TrimGrid::kBoundary ||
+        seen[static_cast<std::size_t>(start)])
+      continue;
+    const int sx = start % kCells, sy = start / kCells;
+    const TrimGrid::Cell side =
+        InsideByClassifier(u0_ + du * (sx + 0.5) / kCells, v0_ + dv * (sy + 0.5) / kCells)
+            ? TrimGrid::kIn
+            : TrimGrid::kOut;
+    stack.assign(1, start);
+    seen[static_cast<std::size_t>(start)] = 1;
+    while (!stack.empty()) {
+      const int at = stack.back();
+      stack.pop_back();
+      cells[static_cast<std::size_t>(at)] = side;
+      const int x = at % kCells, y = at / kCells;
+      const int next[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
+      for (const auto& [nx, ny] : next) {
+        if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
+        const int k = ny * kCells + nx;
+        if (cells[static_cast<std::size_t>(k)] == TrimGrid::kBoundary ||
+            seen[static_cast<std::size_t>(k)])
+          continue;
+        seen[static_cast<std::size_t>(k)] = 1;
+        stack.push_back(k);
+      }
+    }
+  }
+  grid_.n = kCells;
+  grid_.cells = std::move(cells);
+}
+
+double FaceSurface::GridCoverage() const {
+  if (!classifier_) return 1.0;
+  if (grid_.n == 0) return 0.0;
+  const auto certain = std::count_if(grid_.cells.begin(), grid_.cells.end(),
+                                     [](TrimGrid::Cell c) { return c != TrimGrid::kBoundary; });
+  return static_cast<double>(certain) / static_cast<double>(grid_.cells.size());
 }
 
 FaceSurface::FaceSurface(const FaceSurface& other) : FaceSurface(other.face_, other.where_) {}
@@ -119,9 +208,26 @@ Eigen::Vector3d FaceSurface::Point(double u, double v) const {
   return V(surface_.Value(u, v));
 }
 
-bool FaceSurface::Inside(double u, double v) const {
+bool FaceSurface::InBox(double u, double v) const {
   const double tol = 1e-12 * std::max({1.0, u1_ - u0_, v1_ - v0_});
-  if (u < u0_ - tol || u > u1_ + tol || v < v0_ - tol || v > v1_ + tol) return false;
+  return u >= u0_ - tol && u <= u1_ + tol && v >= v0_ - tol && v <= v1_ + tol;
+}
+
+bool FaceSurface::Inside(double u, double v) const {
+  if (!InBox(u, v)) return false;
+  if (!classifier_) return true;
+  if (grid_.n > 0) {
+    const int n = grid_.n;
+    const int x = std::clamp(static_cast<int>((u - u0_) / (u1_ - u0_) * n), 0, n - 1);
+    const int y = std::clamp(static_cast<int>((v - v0_) / (v1_ - v0_) * n), 0, n - 1);
+    const TrimGrid::Cell cell = grid_.cells[static_cast<std::size_t>(y * n + x)];
+    if (cell != TrimGrid::kBoundary) return cell == TrimGrid::kIn;
+  }
+  return InsideByClassifier(u, v);
+}
+
+bool FaceSurface::InsideByClassifier(double u, double v) const {
+  if (!InBox(u, v)) return false;
   if (!classifier_) return true;
   const TopAbs_State state = classifier_->Perform(gp_Pnt2d(u, v), Standard_False);
   return state == TopAbs_IN || state == TopAbs_ON;

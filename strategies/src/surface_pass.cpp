@@ -396,11 +396,16 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
     // the face's boundary matter here: a pass that skims the boundary between them (closer than
     // the trace's step could see) is followed on the surface's natural extension. At an end, the
     // pose stays on the boundary point this march meets.
-    if (!eval_.Inside(next.uv) &&
-        ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm))) {
+    // Classified once per step (a point near a trimming loop asks OpenCASCADE's classifier).
+    const bool inside = eval_.Inside(next.uv);
+    if (inside) {
+      // On the face: nothing to decide.
+    } else if ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm)) {
       next = eval_.LastInside(cur, delta > 0.0 ? 1.0 : -1.0, (next.tip - cur.tip).norm(), options_);
       stalled = true;
-    } else if (delta > 0.0 && eval_.DistanceOutside(next.uv) > kOffFaceMm) {
+    } else if (const double off_face = eval_.DistanceOutside(next.uv); off_face <= kOffFaceMm) {
+      // Skimming the boundary between the pass's ends: followed on the surface's extension.
+    } else if (delta > 0.0) {
       // The pass leaves the face here, before the trace said: a pass that meets the boundary at a
       // grazing angle has an ill-conditioned end, and this march's is the one its poses agree
       // with. Report the end here (the planner stops there; links start from where it stops).
@@ -412,7 +417,7 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
       out.state.w = x.guide_t;
       out.pose = {x.tip, x.axis};
       return out;
-    } else if (eval_.DistanceOutside(next.uv) > kOffFaceMm) {
+    } else {
       out.status = PathStatus::kLeftDomain;
       out.state = from;
       return out;

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <GeomAdaptor_Surface.hxx>
 #include <TopoDS_Face.hxx>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,7 +54,14 @@ class FaceSurface {
   // Evaluated by dtis' own B-spline kernel (BSplineSurfaceSpans), not OpenCASCADE's adaptor.
   bool OwnKernel() const { return spans_.has_value(); }
   // (u, v) lies in the face's domain: its UV box, and inside its trimming loops for a trimmed face.
+  // Away from the trimming loops the answer comes from a grid over the UV box (TrimGrid below);
+  // near them, from OpenCASCADE's classifier, as InsideByClassifier.
   bool Inside(double u, double v) const;
+  // Inside, always asking OpenCASCADE's classifier (BRepTopAdaptor_FClass2d) of a trimmed face.
+  bool InsideByClassifier(double u, double v) const;
+  // The share of the UV box the grid answers for without the classifier (1 untrimmed, 0 without
+  // a grid).
+  double GridCoverage() const;
   // How far (u, v) is off the face, mm: 0 inside; beyond the UV box, the distance to the point at
   // the nearest box edge; inside the box but outside a trim, infinity (not measured).
   double DistanceOutside(double u, double v) const;
@@ -73,6 +81,21 @@ class FaceSurface {
   double u0_ = 0, u1_ = 0, v0_ = 0, v1_ = 0;
   bool trimmed_ = false;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;
+
+  // Which cells of an n x n grid over the UV box the trimming loops do not come near, and on
+  // which side of them each such cell lies. Built once per face from polylines of the loops'
+  // pcurves (sampled until a chord strays less than a tenth of a cell from its curve) with each
+  // segment's box widened by twice that stray: a cell no widened box touches holds no point of
+  // the boundary, so all of it is on one side, and so is every cell connected to it through such
+  // cells (one classifier call per connected region).
+  struct TrimGrid {
+    enum Cell : std::uint8_t { kBoundary, kIn, kOut };
+    int n = 0;
+    std::vector<Cell> cells;  // row-major, v by u
+  };
+  TrimGrid grid_;
+  void BuildTrimGrid();
+  bool InBox(double u, double v) const;
 };
 
 }  // namespace dtis::geometry
