@@ -801,8 +801,8 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
                     job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
     out += fmt::format("interpreter      {}\n", GcodeInterpreterName(job.path.gcode.interpreter));
     if (const auto& tools = job.path.gcode.tool_table) {
-      out += fmt::format("tool table       {}: {} tools, G43 offsets applied\n", tools->file,
-                         tools->tools.size());
+      out += fmt::format("tool table       {}: {} tool{}, G43 offsets applied\n", tools->file,
+                         tools->tools.size(), tools->tools.size() == 1 ? "" : "s");
     }
     for (const auto& [what, count] : r.gcode_notes) {
       out += fmt::format("                 {} x {}\n", count, what);
