@@ -106,7 +106,9 @@ void FaceSurface::BuildTrimGrid() {
   const auto cell_xy = [&](const gp_Pnt2d& p) {
     return Eigen::Vector2d((p.X() - u0_) / du * kCells, (p.Y() - v0_) / dv * kCells);
   };
-  std::vector<TrimGrid::Cell> cells(kCells * kCells, TrimGrid::kIn);
+  // Every cell starts unvisited; the loops' cells become kBoundary, the rest kIn or kOut.
+  std::vector<TrimGrid::Cell> cells(kCells * kCells, TrimGrid::kUnvisited);
+  const auto at = [&](int k) -> TrimGrid::Cell& { return cells[static_cast<std::size_t>(k)]; };
   const auto mark = [&](Eigen::Vector2d a, Eigen::Vector2d b, double widen) {
     const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - widen)));
     const int x1 =
@@ -115,8 +117,7 @@ void FaceSurface::BuildTrimGrid() {
     const int y1 =
         std::min(kCells - 1, static_cast<int>(std::floor(std::max(a.y(), b.y()) + widen)));
     for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x)
-        cells[static_cast<std::size_t>(y * kCells + x)] = TrimGrid::kBoundary;
+      for (int x = x0; x <= x1; ++x) at(y * kCells + x) = TrimGrid::kBoundary;
     }
   };
   for (TopExp_Explorer e(face_, TopAbs_EDGE); e.More(); e.Next()) {
@@ -144,32 +145,25 @@ void FaceSurface::BuildTrimGrid() {
       mark(points[k], points[k + 1], 2.0 * stray + 1e-6);
   }
   // One side per connected region of cells the boundary does not come near.
-  std::vector<std::uint8_t> seen(cells.size(), 0);
   std::vector<int> stack;
   for (int start = 0; start < kCells * kCells; ++start) {
-    if (cells[static_cast<std::size_t>(start)] == TrimGrid::kBoundary ||
-        seen[static_cast<std::size_t>(start)])
-      continue;
+    if (at(start) != TrimGrid::kUnvisited) continue;
     const int sx = start % kCells, sy = start / kCells;
     const TrimGrid::Cell side =
         InsideByClassifier(u0_ + du * (sx + 0.5) / kCells, v0_ + dv * (sy + 0.5) / kCells)
             ? TrimGrid::kIn
             : TrimGrid::kOut;
     stack.assign(1, start);
-    seen[static_cast<std::size_t>(start)] = 1;
+    at(start) = side;
     while (!stack.empty()) {
-      const int at = stack.back();
+      const int x = stack.back() % kCells, y = stack.back() / kCells;
       stack.pop_back();
-      cells[static_cast<std::size_t>(at)] = side;
-      const int x = at % kCells, y = at / kCells;
       const int next[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
       for (const auto& [nx, ny] : next) {
         if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
         const int k = ny * kCells + nx;
-        if (cells[static_cast<std::size_t>(k)] == TrimGrid::kBoundary ||
-            seen[static_cast<std::size_t>(k)])
-          continue;
-        seen[static_cast<std::size_t>(k)] = 1;
+        if (at(k) != TrimGrid::kUnvisited) continue;
+        at(k) = side;
         stack.push_back(k);
       }
     }

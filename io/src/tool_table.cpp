@@ -3,10 +3,10 @@
 #include <fmt/format.h>
 
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <unordered_map>
 
 #include "dtis/core/error.hpp"
@@ -14,14 +14,6 @@
 
 namespace dtis::io {
 namespace {
-
-// "+0.511", "-2", "1e3": a finite number, the whole of `text`.
-bool ParseNumber(std::string_view text, double* value) {
-  if (!text.empty() && text.front() == '+') text.remove_prefix(1);
-  if (text.empty() || text.front() == '+') return false;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), *value);
-  return ec == std::errc() && end == text.data() + text.size() && std::isfinite(*value);
-}
 
 constexpr std::string_view kOffsetWords = "XYZABCUVW";  // ToolEntry::offset's order
 
@@ -46,9 +38,8 @@ int ToolNumber(const LineReader& at, char letter, double value, std::string_view
   return static_cast<int>(value);
 }
 
-ToolEntry ParseLine(std::string_view text, const LineReader& at, int line) {
+ToolEntry ParseLine(std::string_view text, const LineReader& at) {
   ToolEntry entry;
-  entry.line = line;
   bool seen[26] = {};
   std::size_t i = 0;
   while (i < text.size()) {
@@ -70,10 +61,9 @@ ToolEntry ParseLine(std::string_view text, const LineReader& at, int line) {
     }
     if (seen[letter - 'A']) at.Fail("{} appears twice", letter);
     seen[letter - 'A'] = true;
-    double value = 0.0;
-    if (!ParseNumber(word.substr(1), &value)) {
-      at.Fail("{}: expected a number, got '{}'", letter, word.substr(1));
-    }
+    const std::optional<double> number = ParseFiniteNumber(word.substr(1));
+    if (!number) at.Fail("{}: expected a number, got '{}'", letter, word.substr(1));
+    const double value = *number;
     if (letter == 'T') {
       entry.tool = ToolNumber(at, letter, value, word.substr(1));
     } else if (letter == 'P') {
@@ -117,7 +107,8 @@ ToolTable ParseToolTable(std::string_view text, const std::string& source_name) 
           "this is the tool table format of LinuxCNC before 2.4 (TOOLNO POCKET LENGTH "
           "DIAMETER columns); write one tool per line as T1 P1 Z0.511 D0.125 ;comment");
     }
-    ToolEntry entry = ParseLine(content, at, line);
+    ToolEntry entry = ParseLine(content, at);
+    entry.line = line;
     if (const auto [it, inserted] = line_of_tool.emplace(entry.tool, line); !inserted) {
       at.Fail("tool T{} is already in the table, on line {}", entry.tool, it->second);
     }

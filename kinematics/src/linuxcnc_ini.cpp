@@ -2,7 +2,6 @@
 // axis letters of [TRAJ] COORDINATES mapped to joints as the module maps them, the limits of
 // [JOINT_n] and [AXIS_L] in the file's LINEAR_UNITS and ANGULAR_UNITS, and the module's pivot pins
 // as the INI's HAL files and HALCMD lines set them.
-#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -31,15 +30,7 @@ std::string Upper(std::string s) {
   return s;
 }
 
-std::optional<double> ParseNumber(std::string_view s) {
-  const std::string t = Trim(s);
-  double v = 0.0;
-  const char* first = t.data();
-  if (!t.empty() && t[0] == '+') ++first;
-  const auto [end, ec] = std::from_chars(first, t.data() + t.size(), v);
-  if (ec != std::errc() || end != t.data() + t.size() || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
+std::optional<double> ParseNumber(std::string_view s) { return ParseFiniteNumber(Trim(s)); }
 
 // The INI as LinuxCNC reads it: [SECTION], KEY = VALUE (repeatable), comments on lines starting
 // with # or ;, a trailing backslash continuing a line, #INCLUDE FILE (relative to the including

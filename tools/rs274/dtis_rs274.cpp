@@ -128,15 +128,20 @@ Canon canon;
 
 double Scale(std::size_t k) { return kLinear[k] ? canon.units : 1.0; }
 
+// (x, y) turned about Z by `degrees`: the XY rotation (G10 L2 R).
+void RotateXY(double degrees, double* x, double* y) {
+  const double r = degrees * M_PI / 180.0;
+  const double x0 = *x, y0 = *y;
+  *x = std::cos(r) * x0 - std::sin(r) * y0;
+  *y = std::sin(r) * x0 + std::cos(r) * y0;
+}
+
 // A program point to the machine frame, as LinuxCNC's canon maps it: G92, the rotation about Z,
 // the work offset, the tool offset.
 Pose ToMachine(const Pose& program) {
   Pose m;
   for (std::size_t k = 0; k < 9; ++k) m[k] = program[k] * Scale(k) + canon.g92[k];
-  const double r = canon.xy_rotation * M_PI / 180.0;
-  const double x = m[0], y = m[1];
-  m[0] = std::cos(r) * x - std::sin(r) * y;
-  m[1] = std::sin(r) * x + std::cos(r) * y;
+  RotateXY(canon.xy_rotation, &m[0], &m[1]);
   for (std::size_t k = 0; k < 9; ++k) m[k] += canon.g5x[k] + canon.tool[k];
   return m;
 }
@@ -144,10 +149,7 @@ Pose ToMachine(const Pose& program) {
 Pose ToProgram(const Pose& m) {
   Pose p;
   for (std::size_t k = 0; k < 9; ++k) p[k] = m[k] - canon.g5x[k] - canon.tool[k];
-  const double r = -canon.xy_rotation * M_PI / 180.0;
-  const double x = p[0], y = p[1];
-  p[0] = std::cos(r) * x - std::sin(r) * y;
-  p[1] = std::sin(r) * x + std::cos(r) * y;
+  RotateXY(-canon.xy_rotation, &p[0], &p[1]);
   for (std::size_t k = 0; k < 9; ++k) p[k] = (p[k] - canon.g92[k]) / Scale(k);
   return p;
 }
@@ -161,12 +163,6 @@ Pose Written(const Pose& m) {
   }
   return out;
 }
-// A direction (the arc's axis) to the machine frame.
-std::array<double, 3> Rotated(double x, double y, double z) {
-  const double r = canon.xy_rotation * M_PI / 180.0;
-  return {std::cos(r) * x - std::sin(r) * y, std::sin(r) * x + std::cos(r) * y, z};
-}
-
 void Record(const char* kind, int line, std::initializer_list<double> values) {
   std::printf("%s %d", kind, line);
   for (const double v : values) std::printf(" %.17g", v);
@@ -209,12 +205,12 @@ void ARC_FEED(int line, double first_end, double second_end, double first_axis, 
   end[i1] = first_end, end[i2] = second_end, end[in] = axis_end_point;
   Pose centre = end;  // a point on the arc's axis: in the start's plane
   centre[i1] = first_axis, centre[i2] = second_axis, centre[in] = start[in];
-  double normal[3] = {0, 0, 0};
-  normal[in] = 1.0;
+  double n[3] = {0, 0, 0};  // the arc's axis, turned to the machine frame
+  n[in] = 1.0;
+  RotateXY(canon.xy_rotation, &n[0], &n[1]);
   canon.position = ToMachine(end);
   const Pose e = Written(canon.position);
   const Pose k = Written(ToMachine(centre));
-  const std::array<double, 3> n = Rotated(normal[0], normal[1], normal[2]);
   Record("A", line,
          {e[0], e[1], e[2], k[0], k[1], k[2], n[0], n[1], n[2], static_cast<double>(rotation), e[3],
           e[4], e[5]});

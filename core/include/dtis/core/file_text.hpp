@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 
 namespace dtis {
 
@@ -16,6 +17,10 @@ void RequireRegularFile(const std::string& path);
 // Text inputs are read whole: larger than this (about 18 hours of 5-axis setpoints at 1 ms) they
 // are refused.
 inline constexpr std::uintmax_t kMaxTextFileBytes = std::uintmax_t{4} << 30;
+
+// A finite number as the text files dtis reads write them (LinuxCNC INI files, tool tables): an
+// optional leading '+', then a decimal std::from_chars reads, making up the whole of `text`.
+std::optional<double> ParseFiniteNumber(std::string_view text);
 
 // The file's bytes, or nothing when it cannot be opened. Throws dtis::Error when it is not a
 // regular file or larger than kMaxTextFileBytes.

@@ -89,7 +89,7 @@ class FaceSurface {
   // the boundary, so all of it is on one side, and so is every cell connected to it through such
   // cells (one classifier call per connected region).
   struct TrimGrid {
-    enum Cell : std::uint8_t { kBoundary, kIn, kOut };
+    enum Cell : std::uint8_t { kBoundary, kIn, kOut, kUnvisited };  // kUnvisited: building
     int n = 0;
     std::vector<Cell> cells;  // row-major, v by u
   };
