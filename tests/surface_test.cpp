@@ -299,22 +299,41 @@ TEST(SurfacePass, IsoLinesKeepTheirParameterAndArcLengthIsTheTipPath) {
   EXPECT_LT((last - pass.EndPose().tip).norm(), 1e-6);
 }
 
-TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
-  const StepModel m = StepModel::Load(test::Source(kTrj8));
-  const TopoDS_Face face = geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0});
-  const FaceSurface surface(face, "trj8");
-  Tool bull;
-  bull.kind = Tool::Kind::kBullNose;
-  bull.radius = 5.0;
-  bull.corner_radius = 1.0;
+Tool Torus(Tool::Kind kind, double radius, double corner) {
+  Tool t;
+  t.kind = kind;
+  t.radius = radius;
+  t.corner_radius = corner;
+  return t;
+}
+
+// OCCT's trj8 stood up (rotated 90 deg about Y), finished along Y in planes x = const by a bull
+// nose R5 r1 leaning 10 deg along the feed.
+struct TiltedTrj8 {
+  TopoDS_Face face;
+  Tool bull = Torus(Tool::Kind::kBullNose, 5.0, 1.0);
   Orientation o;
-  o.kind = Orientation::Kind::kTiltYaw;
-  o.tilt_rad = 10.0 * std::numbers::pi / 180.0;
-  StrategySpec spec;
-  spec.plane_normal = Eigen::Vector3d::UnitX();
-  spec.direction = Eigen::Vector3d::UnitY();
-  spec.stepover_mm = 6.0;
-  const auto passes = strategies::BuildPasses(surface, bull, o, spec);
+  strategies::PassList passes;
+
+  TiltedTrj8() {
+    const StepModel m = StepModel::Load(test::Source(kTrj8));
+    face = geometry::PlaceFace(m.Face(1), {0, 90, 0}, {0, 0, 0});
+    o.kind = Orientation::Kind::kTiltYaw;
+    o.tilt_rad = 10.0 * std::numbers::pi / 180.0;
+    StrategySpec spec;
+    spec.plane_normal = Eigen::Vector3d::UnitX();
+    spec.direction = Eigen::Vector3d::UnitY();
+    spec.stepover_mm = 6.0;
+    passes = strategies::BuildPasses(FaceSurface(face, "trj8"), bull, o, spec);
+  }
+};
+
+TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
+  const TiltedTrj8 trj8;
+  const TopoDS_Face& face = trj8.face;
+  const Tool& bull = trj8.bull;
+  const Orientation& o = trj8.o;
+  const auto& passes = trj8.passes;
   ASSERT_FALSE(passes.passes.empty());
   const auto machine =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
@@ -344,6 +363,161 @@ TEST(SurfacePass, FiveAxisTiltLeansTheAxisFromTheNormalAlongTheFeed) {
       st = smp.state;
     }
   }
+}
+
+// How far the tool (a torus of corner radius r around a circle of radius R, closed by its flat
+// bottom) stands above the plane through `on` with unit normal n, the tool's axis a: the support
+// function of the torus, min over the tool of n . x = n . (tip + r a) - R |n - (n.a) a| - r.
+double ClearanceAbovePlane(const Tool& tool, const Pose& pose, const Eigen::Vector3d& n,
+                           const Eigen::Vector3d& on) {
+  const double r = tool.corner_radius, big_r = tool.TorusRadius();
+  const Eigen::Vector3d& a = pose.axis;
+  return n.dot(pose.tip + r * a - on) - big_r * (n - n.dot(a) * a).norm() - r;
+}
+
+TEST(Tool, EveryToolTouchesAPlaneWithoutGoingIntoIt) {
+  // The tip from a contact point on a plane, for random normals and axes: the tool's lowest point
+  // along the normal is the contact point (support function, independent of TipFromContact).
+  std::mt19937_64 rng(20261125);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const auto random_unit = [&] {
+    return Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+  };
+  const Tool tools[] = {Ball(3.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0),
+                        Torus(Tool::Kind::kFlatEnd, 4.0, 0.0)};
+  for (const Tool& tool : tools) {
+    SCOPED_TRACE(tool.Describe());
+    for (int k = 0; k < 1000; ++k) {
+      const Eigen::Vector3d n = random_unit(), p = 10.0 * random_unit();
+      Eigen::Vector3d a = random_unit();
+      if (a.dot(n) < 0.05) a = (a - (a.dot(n) - 0.05) * n).normalized();
+      Eigen::Vector3d tip;
+      ASSERT_TRUE(geometry::TipFromContact(tool, p, n, a, &tip));
+      EXPECT_NEAR(ClearanceAbovePlane(tool, {tip, a}, n, p), 0.0, 1e-12);
+    }
+  }
+}
+
+TEST(SurfacePass, TorusToolsFinishASlopeWithoutGoingIntoIt) {
+  // The plane z = -x tan(30 deg), finished along Y by plane_cl with a fixed vertical axis and
+  // leaning 10 deg along the feed: every setpoint's tool touches the plane and stays above it.
+  const double slope = 30.0 * std::numbers::pi / 180.0;
+  const Eigen::Vector3d n(std::sin(slope), 0.0, std::cos(slope));
+  const gp_Pln plane(gp_Pnt(0, 0, 0), gp_Dir(n.x(), n.y(), n.z()));
+  const TopoDS_Face face = BRepBuilderAPI_MakeFace(plane, -20, 20, -20, 20).Face();
+  const FaceSurface surface(face, "slope");
+  const auto xyzac =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  Orientation tilted;
+  tilted.kind = Orientation::Kind::kTiltYaw;
+  tilted.tilt_rad = 10.0 * std::numbers::pi / 180.0;
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kBullNose, 5.0, 1.0), Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Ball(3.0)}) {
+    for (const Orientation& o : {Orientation{}, tilted}) {
+      SCOPED_TRACE(tool.Describe() + ", " + o.Describe());
+      StrategySpec spec;
+      spec.plane_normal = Eigen::Vector3d::UnitX();
+      spec.direction = Eigen::Vector3d::UnitY();
+      spec.stepover_mm = 8.0;
+      const auto passes = strategies::BuildPasses(surface, tool, o, spec);
+      ASSERT_GE(passes.passes.size(), 3u);
+      interp::VpopOptions opt;
+      opt.feed_mm_s = 50.0;
+      test::Collect sink;
+      interp::PlanVpop(*passes.passes[1], *xyzac, opt, sink);
+      ASSERT_GT(sink.points.size(), 100u);
+      double lo = INFINITY, hi = -INFINITY;
+      for (const auto& sp : sink.points) {
+        const double c =
+            ClearanceAbovePlane(tool, xyzac->Forward(sp.q), n, Eigen::Vector3d::Zero());
+        lo = std::min(lo, c), hi = std::max(hi, c);
+      }
+      EXPECT_GT(lo, -1e-6);
+      EXPECT_LT(hi, 1e-6);
+    }
+  }
+}
+
+// How far the tool at `pose` stands above `face` (from the side `toward` points to at the
+// contact (u, v)), sampled: points of its flat bottom and of the lower outer quarter of its
+// corner, each projected onto the face by OpenCASCADE; samples with no orthogonal projection (off
+// the face's edge) are skipped. The least signed distance.
+double SampledClearance(const TopoDS_Face& face, const Tool& tool, const Pose& pose,
+                        const Eigen::Vector2d& uv, const Eigen::Vector3d& toward) {
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(face);
+  gp_Pnt p0;
+  gp_Vec su, sv;
+  s->D1(uv.x(), uv.y(), p0, su, sv);
+  const double side =
+      Eigen::Vector3d(su.Crossed(sv).X(), su.Crossed(sv).Y(), su.Crossed(sv).Z()).dot(toward) > 0.0
+          ? 1.0
+          : -1.0;
+  const Eigen::Vector3d& a = pose.axis;
+  const Eigen::Vector3d e1 = a.unitOrthogonal(), e2 = a.cross(e1);
+  const double r = tool.corner_radius, big_r = tool.TorusRadius();
+  std::vector<Eigen::Vector3d> points;
+  constexpr int kAround = 72;
+  for (int i = 0; i < kAround; ++i) {
+    const double phi = 2.0 * std::numbers::pi * i / kAround;
+    const Eigen::Vector3d e = std::cos(phi) * e1 + std::sin(phi) * e2;
+    for (int k = 1; k <= 3; ++k) points.push_back(pose.tip + e * (big_r * k / 3.0));
+    for (int k = 0; k <= 6; ++k) {
+      const double psi = 0.5 * std::numbers::pi * k / 6.0;
+      points.push_back(pose.tip + r * a + big_r * e + r * (std::sin(psi) * e - std::cos(psi) * a));
+    }
+  }
+  double least = INFINITY;
+  GeomAPI_ProjectPointOnSurf proj;
+  double u0, u1, v0, v1;
+  s->Bounds(u0, u1, v0, v1);
+  proj.Init(s, u0, u1, v0, v1, 1e-9);
+  for (const Eigen::Vector3d& x : points) {
+    proj.Perform(gp_Pnt(x.x(), x.y(), x.z()));
+    if (!proj.IsDone() || proj.NbPoints() == 0) continue;
+    double u, v;
+    proj.LowerDistanceParameters(u, v);
+    gp_Pnt q;
+    s->D1(u, v, q, su, sv);
+    const gp_Vec nn = su.Crossed(sv);
+    if (nn.Magnitude() == 0.0) continue;
+    const Eigen::Vector3d normal = side * Eigen::Vector3d(nn.X(), nn.Y(), nn.Z()) / nn.Magnitude();
+    least = std::min(least, (x - Eigen::Vector3d(q.X(), q.Y(), q.Z())).dot(normal));
+  }
+  return least;
+}
+
+TEST(SurfacePass, TiltedBullNoseTouchesACurvedFaceWithoutGoingIntoIt) {
+  const TiltedTrj8 trj8;
+  const TopoDS_Face& face = trj8.face;
+  const Tool& bull = trj8.bull;
+  const auto& passes = trj8.passes;
+  ASSERT_FALSE(passes.passes.empty());
+  int checked = 0;
+  for (const auto& pass : passes.passes) {
+    PathState st = pass->Start();
+    const double length = *pass->Length();
+    for (double s = 0.2 * length; s <= 0.9 * length; s += 0.3 * length) {
+      const PathSample smp = pass->At(st, s);
+      ASSERT_EQ(smp.status, PathStatus::kOk);
+      strategies::ContactPoint c;
+      ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+      // No point of the tool is under the face...
+      EXPECT_GT(SampledClearance(face, bull, smp.pose, c.uv, c.n), -1e-6)
+          << pass->Describe(smp.state);
+      // ... and the contact point is on the tool's lower outer corner: r from the corner circle,
+      // below its plane and outside its radius.
+      const Eigen::Vector3d centre = smp.pose.tip + bull.corner_radius * smp.pose.axis;
+      const Eigen::Vector3d d = c.p - centre;
+      const Eigen::Vector3d across = d - d.dot(smp.pose.axis) * smp.pose.axis;
+      const Eigen::Vector3d corner = centre + across.normalized() * bull.TorusRadius();
+      EXPECT_NEAR((c.p - corner).norm(), bull.corner_radius, 1e-9);
+      EXPECT_LE((c.p - corner).dot(smp.pose.axis), 1e-9);
+      EXPECT_GE((c.p - corner).dot(across.normalized()), -1e-9);
+      st = smp.state;
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 10);
 }
 
 std::string BuildError(const std::string& file, int face_index, const Tool& tool,

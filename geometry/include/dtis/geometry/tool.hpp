@@ -4,9 +4,13 @@
 //
 // The cutter location is the tool tip (the centre of the tool's bottom, on its axis). With contact
 // point P, unit surface normal n (pointing out of the material) and unit tool axis a (tip towards
-// spindle), the corner centre touching P is Q = P + r n, the tool axis passes at distance R from Q
-// along w = (n - (n.a) a) / |n - (n.a) a|, and
-//     tip = P + r n - R w - r a.
+// spindle), the corner centre touching P is Q = P + r n. The tool touches with the outer half of
+// its corner, whose own outward normal there is -n: Q lies on the corner circle in the direction
+// of -n's part across the axis, so the axis passes at distance R from Q along
+// w = (n - (n.a) a) / |n - (n.a) a|, and
+//     tip = P + r n + R w - r a.
+// (On a plane sloping down towards +x, a flat end touches with its uphill edge and its axis lies
+// R downhill of the contact point, along w.)
 // When n is along a and R > 0 (a bull nose or flat end sitting flat), w is undefined: the contact
 // is anywhere on the flat bottom and the cutter location is not a function of the contact point.
 #pragma once
@@ -46,7 +50,7 @@ bool TipFromContact(const Tool& tool, const Eigen::Matrix<T, 3, 1>& p,
   const Eigen::Matrix<T, 3, 1> side = n - a * n.dot(a);
   const T norm = sqrt(side.squaredNorm());
   if (!(norm > T(kFlatContactSine))) return false;
-  *tip -= side * (T(big_r) / norm);
+  *tip += side * (T(big_r) / norm);
   return true;
 }
 
