@@ -12,9 +12,11 @@
 #include <GeomConvert.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
+#include <Geom_BezierSurface.hxx>
 #include <Geom_CylindricalSurface.hxx>
 #include <Geom_RectangularTrimmedSurface.hxx>
 #include <Geom_Surface.hxx>
+#include <TColgp_Array2OfPnt.hxx>
 #include <TopoDS_Wire.hxx>
 #include <cmath>
 #include <gp_Circ.hxx>
@@ -438,6 +440,24 @@ TEST(SurfacePass, TorusToolsFinishASlopeWithoutGoingIntoIt) {
   }
 }
 
+// Calls visit(pass, sample, contact) at arc lengths (from + k step) times each pass's length,
+// below its end, marching from one to the next.
+template <typename Visit>
+void ForPosesAlong(const strategies::PassList& passes, double from, double step, Visit&& visit) {
+  for (const auto& pass : passes.passes) {
+    PathState st = pass->Start();
+    const double length = *pass->Length();
+    for (double f = from; f < 1.0; f += step) {
+      const PathSample smp = pass->At(st, f * length);
+      ASSERT_EQ(smp.status, PathStatus::kOk);
+      strategies::ContactPoint c;
+      ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+      visit(*pass, smp, c);
+      st = smp.state;
+    }
+  }
+}
+
 // How far the tool at `pose` stands above `face` (from the side `toward` points to at the
 // contact (u, v)), sampled: points of its flat bottom and of the lower outer quarter of its
 // corner, each projected onto the face by OpenCASCADE; samples with no orthogonal projection (off
@@ -493,30 +513,23 @@ TEST(SurfacePass, TiltedBullNoseTouchesACurvedFaceWithoutGoingIntoIt) {
   const auto& passes = trj8.passes;
   ASSERT_FALSE(passes.passes.empty());
   int checked = 0;
-  for (const auto& pass : passes.passes) {
-    PathState st = pass->Start();
-    const double length = *pass->Length();
-    for (double s = 0.2 * length; s <= 0.9 * length; s += 0.3 * length) {
-      const PathSample smp = pass->At(st, s);
-      ASSERT_EQ(smp.status, PathStatus::kOk);
-      strategies::ContactPoint c;
-      ASSERT_EQ(pass->Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
-      // No point of the tool is under the face...
-      EXPECT_GT(SampledClearance(face, bull, smp.pose, c.uv, c.n), -1e-6)
-          << pass->Describe(smp.state);
-      // ... and the contact point is on the tool's lower outer corner: r from the corner circle,
-      // below its plane and outside its radius.
-      const Eigen::Vector3d centre = smp.pose.tip + bull.corner_radius * smp.pose.axis;
-      const Eigen::Vector3d d = c.p - centre;
-      const Eigen::Vector3d across = d - d.dot(smp.pose.axis) * smp.pose.axis;
-      const Eigen::Vector3d corner = centre + across.normalized() * bull.TorusRadius();
-      EXPECT_NEAR((c.p - corner).norm(), bull.corner_radius, 1e-9);
-      EXPECT_LE((c.p - corner).dot(smp.pose.axis), 1e-9);
-      EXPECT_GE((c.p - corner).dot(across.normalized()), -1e-9);
-      st = smp.state;
-      ++checked;
-    }
-  }
+  ForPosesAlong(passes, 0.2, 0.3,
+                [&](const strategies::SurfacePass& pass, const PathSample& smp,
+                    const strategies::ContactPoint& c) {
+                  // No point of the tool is under the face...
+                  EXPECT_GT(SampledClearance(face, bull, smp.pose, c.uv, c.n), -1e-6)
+                      << pass.Describe(smp.state);
+                  // ... and the contact point is on the tool's lower outer corner: r from the
+                  // corner circle, below its plane and outside its radius.
+                  const Eigen::Vector3d centre = smp.pose.tip + bull.corner_radius * smp.pose.axis;
+                  const Eigen::Vector3d d = c.p - centre;
+                  const Eigen::Vector3d across = d - d.dot(smp.pose.axis) * smp.pose.axis;
+                  const Eigen::Vector3d corner = centre + across.normalized() * bull.TorusRadius();
+                  EXPECT_NEAR((c.p - corner).norm(), bull.corner_radius, 1e-9);
+                  EXPECT_LE((c.p - corner).dot(smp.pose.axis), 1e-9);
+                  EXPECT_GE((c.p - corner).dot(across.normalized()), -1e-9);
+                  ++checked;
+                });
   EXPECT_GE(checked, 10);
 }
 
@@ -753,6 +766,58 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
 // A trimmed face: a disc of radius 20 mm cut from the plane z = 0. A ball end's passes in planes
 // x = c are the chords of the disc: they start and end on the trimming circle and are
 // 2 sqrt(R^2 - c^2) long (a closed form independent of the strategies' code).
+// A valley z = y^2 / (2 rho), rho = 20 mm, over x, y in [-15, 15]: a Bezier surface, quadratic
+// across the valley, linear along it.
+TopoDS_Face Valley() {
+  TColgp_Array2OfPnt poles(1, 2, 1, 3);
+  const double edge = 15.0 * 15.0 / 40.0;
+  for (int i = 1; i <= 2; ++i) {
+    const double x = i == 1 ? -15.0 : 15.0;
+    poles(i, 1) = gp_Pnt(x, -15.0, edge);
+    poles(i, 2) = gp_Pnt(x, 0.0, -edge);
+    poles(i, 3) = gp_Pnt(x, 15.0, edge);
+  }
+  return BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+      .Face();
+}
+
+TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
+  // A flat end R4 crossing the valley touches with its edge on the near flank, its bottom
+  // reaching 8 mm towards the far one; once the contact is within 4 mm of the bottom of the
+  // valley, the far flank rises above the contact there and the bottom goes into it. The contact's
+  // own curvature says nothing of it (the edge touches a flank of radius 20 mm).
+  const FaceSurface surface(Valley(), "valley");
+  StrategySpec spec;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 5.0;
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 4.0, 1.0)}) {
+    SCOPED_TRACE(tool.Describe());
+    try {
+      strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      ADD_FAILURE() << "a flat bottom across the valley must be refused";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("the tool gouges"), std::string::npos) << what;
+      EXPECT_NE(what.find("mm into it at ("), std::string::npos) << what;
+      EXPECT_NE(what.find("line 1"), std::string::npos) << what;
+      EXPECT_NE(what.find("arc length"), std::string::npos) << what;
+    }
+  }
+  // A ball narrower than the valley's radius finishes it, and no point of it is under the face.
+  const Tool ball = Ball(3.0);
+  const auto passes = strategies::BuildPasses(surface, ball, Orientation{}, spec);
+  ASSERT_GE(passes.passes.size(), 5u);
+  const TopoDS_Face face = Valley();
+  ForPosesAlong(passes, 0.05, 0.3,
+                [&](const strategies::SurfacePass& pass, const PathSample& smp,
+                    const strategies::ContactPoint& c) {
+                  EXPECT_GT(SampledClearance(face, ball, smp.pose, c.uv, c.n), -1e-6)
+                      << pass.Describe(smp.state);
+                });
+}
+
 TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {
   constexpr double kR = 20.0;
   const gp_Circ circle(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), kR);

@@ -49,6 +49,10 @@ class Builder {
     const std::vector<PassConstraint> lines = Lines(list.stepover_mm);
     std::vector<Candidate> found;
     for (std::size_t k = 0; k < lines.size(); ++k) {
+      // Passes are taken line by line: once max_passes are found, later lines add none.
+      if (spec_.max_passes > 0 && found.size() >= static_cast<std::size_t>(spec_.max_passes)) {
+        break;
+      }
       const std::size_t before = found.size();
       FindPasses(static_cast<int>(k), lines[k], &found);
       if (found.size() == before && spec_.range) {
@@ -388,6 +392,87 @@ class Builder {
                        "mm, smaller than the tool's {} mm ({})",
                        1.0 / p.concave_curvature, 1.0 / max_curvature_, tool_.Describe()));
     }
+    const Depth d = DeepestToolPoint(p);
+    if (d.depth > kGougeMm) {
+      Fail(cand.line, cand.constraint, s, p.uv,
+           fmt::format("the tool gouges: touching the face here, it goes {:.3g} mm into it at "
+                       "({:.6g}, {:.6g}, {:.6g}), (u, v) = ({:.9g}, {:.9g}), {:.3g} mm from the "
+                       "contact point (a concave region narrower than the {})",
+                       d.depth, d.at.x(), d.at.y(), d.at.z(), d.uv.x(), d.uv.y(),
+                       (d.at - p.p).norm(), tool_.Describe()));
+    }
+  }
+
+  // A point of the tool further into the face than this is a gouge (the Newton tolerance).
+  static constexpr double kGougeMm = 1e-6;
+
+  struct Depth {
+    double depth = -INFINITY;  // mm under the face (along its normal at the foot)
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+  };
+
+  // The deepest of sampled points of the tool's lower side (its flat bottom, and its corner from
+  // the bottom to the widest circle) when it touches the face at p, among those more than kGougeMm
+  // deep (else depth -inf): each point is dropped along the tool axis onto the face (Newton in
+  // (u, v) from the contact point), and its depth is how far it lies under the face's tangent
+  // plane there. Points with no face below them (off the face's domain, or no convergence on a
+  // wall along the axis) are left out. The contact's own curvature is CheckGouge's first test;
+  // this one finds the face rising into the tool further away, where no local test can (a flat
+  // bottom across a valley, a ball over a bump beside the contact).
+  Depth DeepestToolPoint(const ContactPoint& p) const {
+    const Eigen::Vector3d& a = p.axis;
+    Eigen::Vector3d e1 = p.n - p.n.dot(a) * a;
+    e1 = e1.norm() > 1e-9 ? e1.normalized() : Eigen::Vector3d(a.unitOrthogonal());
+    const Eigen::Vector3d e2 = a.cross(e1);
+    // The face's normal is S_u x S_v on the tool's side, its opposite on the other.
+    const double side = p.dp.col(0).cross(p.dp.col(1)).dot(p.n) > 0.0 ? 1.0 : -1.0;
+    const double r = tool_.corner_radius, big_r = tool_.TorusRadius();
+    constexpr int kAround = 16, kRings = 2, kCorner = 4;
+    Depth deepest;
+    geometry::SurfaceDerivatives d;
+    const auto drop = [&](const Eigen::Vector3d& x) {
+      // (S(u, v) - x) . e1 = (S(u, v) - x) . e2 = 0, from the contact's first-order guess.
+      Eigen::Matrix2d j;
+      j << e1.dot(p.dp.col(0)), e1.dot(p.dp.col(1)), e2.dot(p.dp.col(0)), e2.dot(p.dp.col(1));
+      if (!(std::abs(j.determinant()) > 1e-12)) return;
+      Eigen::Vector2d uv =
+          p.uv - j.inverse() * Eigen::Vector2d((p.p - x).dot(e1), (p.p - x).dot(e2));
+      for (int it = 0; it < 12; ++it) {
+        if (!(uv.x() >= face_.U0() && uv.x() <= face_.U1() && uv.y() >= face_.V0() &&
+              uv.y() <= face_.V1())) {
+          return;
+        }
+        face_.D2(uv.x(), uv.y(), &d);
+        const Eigen::Vector3d off = d.p - x;
+        const Eigen::Vector2d f(off.dot(e1), off.dot(e2));
+        if (f.norm() <= 1e-10) {
+          // How far the point lies under the face's tangent plane at the foot (on a wall nearly
+          // along the axis, the depth along the axis would magnify a rounding error).
+          const Eigen::Vector3d normal = d.su.cross(d.sv);
+          const double depth = off.dot(a) > 0.0 ? off.dot(normal) * (side / normal.norm()) : -1.0;
+          // Only a gouge asks whether the face is there (near a trimming loop the classifier).
+          if (depth > std::max(deepest.depth, kGougeMm) && face_.Inside(uv.x(), uv.y())) {
+            deepest = {depth, x, uv};
+          }
+          return;
+        }
+        j << e1.dot(d.su), e1.dot(d.sv), e2.dot(d.su), e2.dot(d.sv);
+        if (!(std::abs(j.determinant()) > 1e-12)) return;
+        uv -= j.inverse() * f;
+      }
+    };
+    if (big_r > 0.0) drop(p.tip);
+    for (int k = 0; k < kAround; ++k) {
+      const double phi = 2.0 * M_PI * k / kAround;
+      const Eigen::Vector3d e = std::cos(phi) * e1 + std::sin(phi) * e2;
+      for (int i = 1; i <= kRings && big_r > 0.0; ++i) drop(p.tip + e * (big_r * i / kRings));
+      for (int i = 1; i <= kCorner && r > 0.0; ++i) {
+        const double psi = 0.5 * M_PI * i / kCorner;
+        drop(p.tip + r * a + big_r * e + r * (std::sin(psi) * e - std::cos(psi) * a));
+      }
+    }
+    return deepest;
   }
 
   const geometry::FaceSurface& face_;
