@@ -818,6 +818,128 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
                 });
 }
 
+TEST(SurfacePass, AFlatBottomOnAPlaneAcrossTheAxisHasItsTipOnThePlane) {
+  const TopoDS_Face face = BRepBuilderAPI_MakeFace(gp_Pln(gp::XOY()), -20, 20, -20, 20).Face();
+  const FaceSurface surface(face, "floor");
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0)}) {
+    SCOPED_TRACE(tool.Describe());
+    StrategySpec spec;
+    spec.stepover_mm = 7.0;
+    const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+    ASSERT_EQ(passes.passes.size(), 6u);
+    for (const auto& pass : passes.passes) {
+      EXPECT_NEAR(*pass->Length(), 40.0, 1e-6);
+      interp::VpopOptions opt;
+      opt.feed_mm_s = 50.0;
+      const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+      EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+      for (const auto& sp : planned.points) EXPECT_NEAR(xyz->Forward(sp.q).tip.z(), 0.0, 1e-9);
+    }
+  }
+}
+
+// A dome z = 8 - (x^2 + y^2) / 100 near its top (0, 0, 8), over x, y in [-20, 20]: a biquadratic
+// Bezier surface.
+// With `ridge`, a ruled ridge z = 8 - y^2 / 100 instead (its top is the line y = 0).
+TopoDS_Face Dome(bool ridge = false) {
+  TColgp_Array2OfPnt poles(1, 3, 1, 3);
+  for (int i = 1; i <= 3; ++i) {
+    for (int j = 1; j <= 3; ++j) {
+      const double z = (i == 2 && !ridge ? 8.0 : ridge ? 4.0 : 0.0) + (j == 2 ? 8.0 : 0.0);
+      poles(i, j) = gp_Pnt(20.0 * (i - 2), 20.0 * (j - 2), z);
+    }
+  }
+  return BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+      .Face();
+}
+
+TEST(SurfacePass, AFlatBottomSlidesOverATopWithItsTipAtTheTopsHeight) {
+  // Passes in x = const within R of the top carry the tool over it: there the bottom sits on the
+  // top and the tip runs straight at z = 8 across the disc of radius R around it (over a ridge,
+  // R either side of its line). Both planners follow it within every limit.
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0)}) {
+    for (const bool ridge : {false, true}) {
+      const TopoDS_Face face = Dome(ridge);
+      const FaceSurface surface(face, ridge ? "ridge" : "dome");
+      SCOPED_TRACE(tool.Describe() + (ridge ? " on the ridge" : " on the dome"));
+      StrategySpec spec;
+      spec.plane_normal = Eigen::Vector3d::UnitX();
+      spec.direction = Eigen::Vector3d::UnitY();
+      spec.range = std::array<double, 2>{-3.0, 3.0};
+      spec.stepover_mm = 3.0;
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      ASSERT_EQ(passes.passes.size(), 3u);
+      for (const auto& pass : passes.passes) {
+        const double x = pass->Evaluator().Constraint().value;
+        SCOPED_TRACE(x);
+        const double big_r = tool.TorusRadius();
+        // The chord over the top, from the planned setpoints.
+        interp::VpopOptions opt;
+        opt.feed_mm_s = 50.0;
+        opt.planner =
+            pass->Index() % 2 ? interp::PlannerKind::kVpop : interp::PlannerKind::kLookAhead;
+        const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+        ASSERT_GT(planned.points.size(), 100u);
+        EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+        EXPECT_TRUE(planned.report.starts_at_rest && planned.report.ends_at_rest);
+        double lo = INFINITY, hi = -INFINITY;
+        for (const auto& sp : planned.points) {
+          const Pose pose = xyz->Forward(sp.q);
+          if (std::abs(pose.tip.z() - 8.0) < 1e-9) {
+            lo = std::min(lo, pose.tip.y()), hi = std::max(hi, pose.tip.y());
+          }
+          EXPECT_LE(pose.tip.z(), 8.0 + 1e-9);
+          EXPECT_NEAR(pose.tip.x(), x, 1e-6);
+        }
+        const double half = ridge ? big_r : std::sqrt(big_r * big_r - x * x);
+        EXPECT_NEAR(lo, -half, 0.06);  // setpoints 1 ms apart at 50 mm/s at most
+        EXPECT_NEAR(hi, half, 0.06);
+      }
+      // And the tool stays on the face, touching, not in it: OpenCASCADE's projection.
+      ForPosesAlong(passes, 0.1, 0.2,
+                    [&](const strategies::SurfacePass& pass, const PathSample& smp,
+                        const strategies::ContactPoint& c) {
+                      const double clearance = SampledClearance(face, tool, smp.pose, c.uv, c.n);
+                      EXPECT_GT(clearance, -1e-6) << pass.Describe(smp.state);
+                    });
+    }
+  }
+}
+
+TEST(SurfaceErrors, AFlatBottomOverASaddleIsRefusedWithWhere) {
+  // z = (x^2 - y^2) / 100: at the saddle the bottom would rest on the two rising sides at once.
+  TColgp_Array2OfPnt poles(1, 3, 1, 3);
+  for (int i = 1; i <= 3; ++i) {
+    for (int j = 1; j <= 3; ++j) {
+      const double z = (i == 2 ? -4.0 : 4.0) - (j == 2 ? -4.0 : 4.0);
+      poles(i, j) = gp_Pnt(20.0 * (i - 2), 20.0 * (j - 2), z);
+    }
+  }
+  const FaceSurface surface(
+      BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+          .Face(),
+      "saddle");
+  StrategySpec spec;
+  spec.range = std::array<double, 2>{0.0, 0.0};
+  spec.stepover_mm = 1.0;
+  try {
+    strategies::BuildPasses(surface, Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Orientation{}, spec);
+    ADD_FAILURE() << "a flat bottom over a saddle must be refused";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("(u, v)"), std::string::npos) << what;
+    EXPECT_TRUE(what.find("gouges") != std::string::npos ||
+                what.find("sits flat") != std::string::npos)
+        << what;
+  }
+}
+
 TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {
   constexpr double kR = 20.0;
   const gp_Circ circle(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), kR);

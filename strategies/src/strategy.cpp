@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -19,6 +20,7 @@ struct Candidate {
   ContactPoint start, end;
   double length = 0.0;
   double order = 0.0;  // position of the start along the travel, to sort passes of one line
+  std::vector<FlatPiece> flats;
 };
 
 class Builder {
@@ -70,8 +72,9 @@ class Builder {
     for (const Candidate& c : found) {
       if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) break;
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
-      list.passes.push_back(std::make_unique<SurfacePass>(
-          e, static_cast<int>(list.passes.size()) + 1, c.start, c.end, c.length, spec_.newton));
+      list.passes.push_back(
+          std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, c.start, c.end,
+                                        c.length, spec_.newton, c.flats));
     }
     return list;
   }
@@ -335,8 +338,27 @@ class Builder {
       if (!e.Step(cur, h, spec_.newton, &next, &status, &its)) {
         // Shorter steps first: where the pass bends hard (a gouge ahead) they get close enough
         // for the curvature check to say so.
-        if (status == EvalStatus::kOk && h > full / 1024.0) {
+        // A flat bottom coming onto a top: the contact point stops there (kFlatContact once the
+        // normal is the axis, no convergence just before).
+        const bool flat = status == EvalStatus::kFlatContact;
+        if ((status == EvalStatus::kOk || flat) && h > full / 1024.0) {
           h *= 0.5;
+          continue;
+        }
+        FlatPiece piece;
+        if (OverTop(e, cur, s, &piece)) {
+          for (int i = 1; i < 8; ++i) {
+            ContactPoint on = cur;
+            on.p = piece.top;
+            on.uv = piece.top_uv;
+            on.n = cur.axis;
+            on.tip = piece.Tip(piece.s_in + (piece.s_out - piece.s_in) * i / 8.0);
+            CheckGouge(*cand, on, piece.s_in);
+          }
+          cand->flats.push_back(piece);
+          cur = piece.exit;
+          s = piece.s_exit;
+          CheckGouge(*cand, cur, s);
           continue;
         }
         Fail(cand->line, cand->constraint, s, cur.uv,
@@ -375,6 +397,88 @@ class Builder {
       CheckGouge(*cand, cur, s);
       h = std::min(full, 2.0 * h);
     }
+  }
+
+  // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
+  // nose on a fixed axis comes onto a top of the face, the piece over it (FlatPiece). False if
+  // this is not such a place: another tool, orientation or strategy (their contact point is
+  // held by the strategy), no point nearby where the normal is the axis, a face that does not
+  // bend away from the tool all round there (a saddle or a valley: the bottom would rest on two
+  // places), or a plane that misses the bottom's disc around the top.
+  bool OverTop(const PassEvaluator& e, const ContactPoint& cur, double s, FlatPiece* piece) const {
+    const PassConstraint& c = e.Constraint();
+    const double big_r = tool_.TorusRadius();
+    if (!(big_r > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
+        c.kind != PassConstraint::Kind::kPlaneCl) {
+      return false;
+    }
+    const Eigen::Vector3d a = cur.axis;
+    const Eigen::Vector3d e1 = a.unitOrthogonal(), e2 = a.cross(e1);
+    // The top: S_u x S_v along a, by Newton from the contact point.
+    Eigen::Vector2d uv = cur.uv;
+    geometry::SurfaceDerivatives d;
+    bool found = false;
+    for (int it = 0; it < 30; ++it) {
+      face_.D2(uv.x(), uv.y(), &d);
+      const Eigen::Vector3d big_n = d.su.cross(d.sv);
+      const Eigen::Vector2d f(big_n.dot(e1), big_n.dot(e2));
+      if (f.norm() <= 1e-13 * big_n.norm()) {
+        found = true;
+        break;
+      }
+      const Eigen::Vector3d nu = d.suu.cross(d.sv) + d.su.cross(d.suv);
+      const Eigen::Vector3d nv = d.suv.cross(d.sv) + d.su.cross(d.svv);
+      Eigen::Matrix2d j;
+      j << nu.dot(e1), nv.dot(e1), nu.dot(e2), nv.dot(e2);
+      // A crest (the top is a line) leaves j singular: the least-norm step to it.
+      uv -= j.completeOrthogonalDecomposition().solve(f);
+    }
+    if (!found || (d.p - cur.p).norm() > 1e-2) return false;
+    const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(e.Side());
+    if (n.dot(a) < 0.0) return false;
+    // Bends away from the tool all round (a crest's zero curvature along it too).
+    const double ee = d.su.dot(d.su), ff = d.su.dot(d.sv), gg = d.sv.dot(d.sv);
+    const double l = n.dot(d.suu), m = n.dot(d.suv), nn = n.dot(d.svv);
+    const double det1 = ee * gg - ff * ff, b = ee * nn - 2.0 * ff * m + gg * l,
+                 det2 = l * nn - m * m;
+    const double toward = (b + std::sqrt(std::max(0.0, b * b - 4.0 * det1 * det2))) / (2.0 * det1);
+    if (toward > 1e-9) return false;
+    // The bottom's disc around the top, cut by the strategy's plane.
+    const Eigen::Vector3d across = c.normal - c.normal.dot(a) * a;
+    if (across.norm() < 1e-9) return false;
+    const Eigen::Vector3d m_dir = across.normalized();
+    Eigen::Vector3d dir = a.cross(m_dir);
+    if (dir.dot(cur.tangent) < 0.0) dir = -dir;
+    const double t0 = (c.value - c.normal.dot(d.p)) / c.normal.dot(m_dir);
+    if (!(std::abs(t0) < big_r)) return false;
+    const double half = std::sqrt(big_r * big_r - t0 * t0);
+    const Eigen::Vector3d middle = d.p + t0 * m_dir;
+    const Eigen::Vector3d tip_in = middle - half * dir, tip_out = middle + half * dir;
+    if ((tip_in - cur.tip).norm() > 1e-3) return false;
+    // The contact point leaving the top on the far side, just past the chord.
+    constexpr double kPast = 1e-4;
+    const Eigen::Vector3d away = (tip_out - d.p).normalized();
+    Eigen::Matrix<double, 3, 2> dp;
+    dp << d.su, d.sv;
+    const Eigen::Vector2d guess = uv + dp.completeOrthogonalDecomposition().solve(away * kPast);
+    ContactPoint exit;
+    EvalStatus status;
+    if (e.SolveChord(tip_out, kPast, guess, spec_.newton, &exit, &status) < 0 ||
+        (exit.tip - tip_out).dot(dir) < 0.9 * kPast || exit.tangent.dot(dir) < 0.99 ||
+        !e.Inside(exit.uv)) {
+      return false;
+    }
+    piece->entry = cur;
+    piece->exit = exit;
+    piece->top_uv = uv;
+    piece->top = d.p;
+    piece->direction = dir;
+    piece->tip_in = tip_in;
+    piece->s_start = s;
+    piece->s_in = s + (tip_in - cur.tip).norm();
+    piece->s_out = piece->s_in + 2.0 * half;
+    piece->s_exit = piece->s_out + (exit.tip - tip_out).norm();
+    return true;
   }
 
   void CheckGouge(const Candidate& cand, const ContactPoint& p, double s) const {

@@ -42,8 +42,10 @@ const char* EvalStatusText(EvalStatus status) {
       return "the feed direction is undefined (the surface normal is along the strategy plane's "
              "normal)";
     case EvalStatus::kFlatContact:
-      return "the tool sits flat on the surface (normal along the tool axis): the contact point "
-             "does not fix the cutter location; tilt the tool or use a ball end";
+      return "the tool sits flat on the surface (normal along the tool axis) where it is not a "
+             "top, a ridge or a plane (a saddle, the edge of a flat region), or the strategy holds "
+             "the contact point there: the bottom rests on more than one place; tilt the tool or "
+             "use a ball end";
     case EvalStatus::kStalled:
       return "the pass has no direction here (the constraint is singular)";
   }
@@ -131,7 +133,17 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   }
   const Vec3J a = ToolAxis(orientation_, n, f);
   Vec3J tip;
-  if (!geometry::TipFromContact(tool_, s, n, a, &tip)) return EvalStatus::kFlatContact;
+  if (!geometry::TipFromContact(tool_, s, n, a, &tip)) {
+    // Sitting flat. Where the face is flat too (a plane across the axis), the whole bottom
+    // touches and the tool is placed with its tip on the contact point; at a top (the face
+    // bends away) the contact point does not fix the tip: the builder's FlatPiece.
+    const Eigen::Vector3d nv = Value(n);
+    const double e = d.su.squaredNorm(), g = d.sv.squaredNorm();
+    const double bend = std::max({std::abs(nv.dot(d.suu)) / e, std::abs(nv.dot(d.svv)) / g,
+                                  std::abs(nv.dot(d.suv)) / std::sqrt(e * g)});
+    if (!(bend < 1e-9)) return EvalStatus::kFlatContact;
+    tip = s + (n - a) * Jet(tool_.corner_radius);
+  }
   Jet g;
   switch (constraint_.kind) {
     case PassConstraint::Kind::kPlaneCl:
@@ -313,14 +325,55 @@ double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector
   return chord * h / std::sin(h);
 }
 
+Eigen::Vector3d FlatPiece::Tip(double s) const {
+  const Eigen::Vector3d tip_out = tip_in + (s_out - s_in) * direction;
+  if (s <= s_in) {
+    return s_in > s_start ? entry.tip + (tip_in - entry.tip) * ((s - s_start) / (s_in - s_start))
+                          : tip_in;
+  }
+  if (s <= s_out) return tip_in + (s - s_in) * direction;
+  return s_exit > s_out ? tip_out + (exit.tip - tip_out) * ((s - s_out) / (s_exit - s_out))
+                        : tip_out;
+}
+
 SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
-                         const ContactPoint& end, double length, const NewtonOptions& options)
+                         const ContactPoint& end, double length, const NewtonOptions& options,
+                         std::vector<FlatPiece> flats)
     : eval_(evaluator),
       index_(index),
       start_(start),
       end_(end),
       length_(length),
-      options_(options) {}
+      options_(options),
+      flats_(std::move(flats)) {}
+
+const FlatPiece* SurfacePass::FlatAt(double s) const {
+  for (const FlatPiece& f : flats_) {
+    if (s >= f.s_start && s <= f.s_exit) return &f;
+  }
+  return nullptr;
+}
+
+PathSample SurfacePass::OnFlat(const FlatPiece& flat, double s) const {
+  PathSample out;
+  out.state.s = s;
+  out.state.u = flat.top_uv.x();
+  out.state.v = flat.top_uv.y();
+  out.state.w = std::numeric_limits<double>::quiet_NaN();
+  out.state.piece = static_cast<std::int32_t>(&flat - flats_.data()) + 1;
+  out.pose = {flat.Tip(s), flat.entry.axis};
+  return out;
+}
+
+std::vector<double> SurfacePass::Breaks(double s0, double s1) const {
+  std::vector<double> out;
+  for (const FlatPiece& f : flats_) {
+    for (const double b : {f.s_in, f.s_out}) {
+      if (b >= s0 && b <= s1) out.push_back(b);
+    }
+  }
+  return out;
+}
 
 PathState SurfacePass::Start() const {
   PathState st;
@@ -334,6 +387,18 @@ Pose SurfacePass::StartPose() const { return {start_.tip, start_.axis}; }
 Pose SurfacePass::EndPose() const { return {end_.tip, end_.axis}; }
 
 EvalStatus SurfacePass::Evaluate(const PathState& state, ContactPoint* out) const {
+  if (state.piece > 0 && static_cast<std::size_t>(state.piece) <= flats_.size()) {
+    // On a top: the bottom sits on it, the normal is the axis.
+    const FlatPiece& f = flats_[static_cast<std::size_t>(state.piece - 1)];
+    *out = f.entry;
+    out->uv = f.top_uv;
+    out->p = f.top;
+    out->n = f.entry.axis;
+    out->tip = f.Tip(state.s);
+    out->tangent = f.direction;
+    out->g = eval_.Constraint().normal.dot(out->tip) - eval_.Constraint().value;
+    return EvalStatus::kOk;
+  }
   return eval_.Evaluate({state.u, state.v}, out, state.w);
 }
 
@@ -362,9 +427,39 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   // the poses before it to the arc tolerance, not just to the trace's).
   const double target = std::min(s, length_);
   if (s > length_) out.status = PathStatus::kEnd;
+  if (const FlatPiece* flat = FlatAt(target)) {
+    const PathStatus status = out.status;
+    out = OnFlat(*flat, target);
+    out.status = status;
+    return out;
+  }
   int from_slot = 0;
-  ContactPoint cur = From(from, &from_slot);
+  ContactPoint cur;
   double cur_s = from.s;
+  if (from.piece > 0 && static_cast<std::size_t>(from.piece) <= flats_.size()) {
+    // From a top: march on from the contact point on the side of the target.
+    const FlatPiece& f = flats_[static_cast<std::size_t>(from.piece - 1)];
+    const bool ahead = target > from.s;
+    cur = ahead ? f.exit : f.entry;
+    cur_s = ahead ? f.s_exit : f.s_start;
+  } else {
+    cur = From(from, &from_slot);
+  }
+  // The march stops at the traced contact point before a top it would cross, and goes on from
+  // the one after it.
+  const auto next_flat = [&]() -> const FlatPiece* {
+    if (target > cur_s) {
+      for (const FlatPiece& f : flats_) {
+        if (f.s_start >= cur_s && f.s_start < target) return &f;
+      }
+    } else {
+      for (auto f = flats_.rbegin(); f != flats_.rend(); ++f) {
+        if (f->s_exit <= cur_s && f->s_exit > target) return &*f;
+      }
+    }
+    return nullptr;
+  };
+  const FlatPiece* hop = next_flat();
   // The march and the builder's trace sum their arcs over different steps: they agree to far
   // better than this. Within it of an end, the face's boundary is that end.
   constexpr double kSnapMm = 1e-4;
@@ -374,12 +469,20 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   bool stalled = false;
   double longest = options_.max_step_mm;
   for (;;) {
+    const double goal = hop ? (target > cur_s ? hop->s_start : hop->s_exit) : target;
     // A rounding error from the target is the target: a step of 1e-16 mm is below what the
     // Newton of a step resolves, and the march would halve it until it gave up (the look-ahead's
     // searches ask for such arc lengths).
-    if (std::abs(target - cur_s) < 1e-12 * (1.0 + std::abs(target))) cur_s = target;
+    if (std::abs(goal - cur_s) < 1e-12 * (1.0 + std::abs(goal))) cur_s = goal;
+    if (hop && cur_s == goal) {
+      const bool ahead = target > cur_s;
+      cur = ahead ? hop->exit : hop->entry;
+      cur_s = ahead ? hop->s_exit : hop->s_start;
+      hop = next_flat();
+      continue;
+    }
     if (target == cur_s || stalled) break;
-    const double delta = std::clamp(target - cur_s, -longest, longest);
+    const double delta = std::clamp(goal - cur_s, -longest, longest);
     ContactPoint next;
     EvalStatus status = EvalStatus::kOk;
     if (!eval_.Step(cur, delta, options_, &next, &status, &out.iterations)) {

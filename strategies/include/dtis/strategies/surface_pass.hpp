@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "dtis/core/path_source.hpp"
 #include "dtis/geometry/bspline_curve.hpp"
@@ -141,15 +142,40 @@ double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, d
 // arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb);
 
+// Where a flat end or bull nose on a fixed axis passes over a top of the face (a point where the
+// normal is the tool axis and the face bends away from the tool all round), its flat bottom sits
+// on the top while the tip slides across: the contact point stays put and does not fix the cutter
+// location, so the pass cannot be followed by contact point there. The tip runs straight, at the
+// top's height, along the strategy's plane, over the chord of the disc of radius R around the top:
+// from `entry` (the last contact point traced before it, at s_start) to the chord's ends
+// (s_in, s_out) and on to `exit` (the first contact point after it, at s_exit), where the contact
+// point leaves the top on the other side.
+struct FlatPiece {
+  double s_start = 0.0, s_in = 0.0, s_out = 0.0, s_exit = 0.0;
+  Eigen::Vector3d tip_in = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // unit, along the travel
+  ContactPoint entry, exit;
+  Eigen::Vector2d top_uv = Eigen::Vector2d::Zero();
+  Eigen::Vector3d top = Eigen::Vector3d::Zero();
+
+  // The tip at arc length s in [s_start, s_exit]: the straight chord, and straight joins to the
+  // traced contact points on either side (they lie within 1e-3 mm of it, along its direction).
+  Eigen::Vector3d Tip(double s) const;
+};
+
 class SurfacePass final : public PathSource {
  public:
   // `start` and `end` lie on the face's boundary, `length` is the tip arc length between them.
+  // `flats`: the pass's flat pieces, sorted by arc length.
   SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
-              const ContactPoint& end, double length, const NewtonOptions& options);
+              const ContactPoint& end, double length, const NewtonOptions& options,
+              std::vector<FlatPiece> flats = {});
 
   PathState Start() const override;
   std::optional<double> Length() const override { return length_; }
   PathSample At(const PathState& from, double s) const override;
+  // The ends of the flat pieces' chords (where the tip path's curvature jumps).
+  std::vector<double> Breaks(double s0, double s1) const override;
   std::string Describe(const PathState& state) const override;
 
   int Index() const { return index_; }  // 1-based
@@ -161,12 +187,16 @@ class SurfacePass final : public PathSource {
 
  private:
   const ContactPoint& From(const PathState& state, int* slot) const;
+  // The flat piece whose [s_start, s_exit] holds s (nullptr if none).
+  const FlatPiece* FlatAt(double s) const;
+  PathSample OnFlat(const FlatPiece& flat, double s) const;
 
   PassEvaluator eval_;
   int index_;
   ContactPoint start_, end_;
   double length_;
   NewtonOptions options_;
+  std::vector<FlatPiece> flats_;
   // The last state stepped from and the last result: the planner asks several trial arc lengths
   // from the same state, then steps from one of the results.
   mutable ContactPoint cache_[2];
