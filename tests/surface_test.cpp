@@ -635,8 +635,12 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
     try {
       passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
     } catch (const Error& e) {
-      // Refusals must say where (undercuts and gouges are real on these faces).
-      EXPECT_NE(std::string(e.what()).find("(u, v)"), std::string::npos) << e.what();
+      // Refusals must say where (undercuts and gouges are real on these faces), or why no pass
+      // could start.
+      const std::string what = e.what();
+      EXPECT_TRUE(what.find("(u, v)") != std::string::npos ||
+                  what.find("passes could not start: ") != std::string::npos)
+          << what;
       continue;
     }
     ++built;
@@ -666,7 +670,8 @@ TEST(SurfaceProperty, RandomStrategiesOnRealFaces) {
         if (s >= length) break;
       }
       if (!early) {
-        EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6);
+        EXPECT_LT((pass->At(st, length).pose.tip - pass->EndPose().tip).norm(), 1e-6)
+            << pass->Describe(st);
       }
     }
   }
@@ -909,6 +914,31 @@ TEST(SurfacePass, AFlatBottomSlidesOverATopWithItsTipAtTheTopsHeight) {
                       EXPECT_GT(clearance, -1e-6) << pass.Describe(smp.state);
                     });
     }
+  }
+}
+
+TEST(SurfaceErrors, AGuideBendTighterThanTheOffsetIsNamed) {
+  // A guide along X that turns left towards +Y in a bend of a few mm: the pass 6 mm to its left
+  // runs inside the bend, where the offset line folds over itself.
+  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(gp_Pln(gp::XOY()), -50, 50, -50, 50).Face();
+  const FaceSurface surface(floor, "floor");
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kLeadingLine;
+  spec.guide = std::make_shared<const geometry::BSplineCurve>(
+      geometry::BSplineCurveData{2,
+                                 {0, 0, 0, 0.45, 0.55, 1, 1, 1},
+                                 {{-40, 0, 0}, {-4, 0, 0}, {0, 0, 0}, {0, 4, 0}, {0, 40, 0}},
+                                 {}});
+  spec.range = std::array<double, 2>{6.0, 6.0};
+  spec.stepover_mm = 6.0;
+  try {
+    strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+    ADD_FAILURE() << "a pass inside a bend tighter than its offset must be refused";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("bends tighter than the pass's offset"), std::string::npos) << what;
+    EXPECT_NE(what.find("arc length"), std::string::npos) << what;
+    EXPECT_NE(what.find("(u, v)"), std::string::npos) << what;
   }
 }
 

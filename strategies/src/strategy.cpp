@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "dtis/core/error.hpp"
 
@@ -63,8 +64,10 @@ class Builder {
       }
     }
     if (found.empty()) {
-      throw Error("{}: no pass of the {} strategy crosses the face", face_.Where(),
-                  StrategySpec::KindName(spec_.kind));
+      throw Error(
+          "{}: no pass of the {} strategy crosses the face{}", face_.Where(),
+          StrategySpec::KindName(spec_.kind),
+          refused_ ? fmt::format(" (passes could not start: {})", EvalStatusText(*refused_)) : "");
     }
     std::stable_sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
       return a.line != b.line ? a.line < b.line : a.order < b.order;
@@ -268,7 +271,12 @@ class Builder {
     ContactPoint fwd, back;
     int its = 0;
     const bool f_ok = e.Step(r, kProbeMm, o, &fwd, &status, &its) && e.Inside(fwd.uv);
-    if (!f_ok) return;  // the pass leaves the face here (or only touches it)
+    if (!f_ok) {
+      // The pass leaves the face here (or only touches it), or cannot start: say why if no
+      // pass is found at all.
+      if (status != EvalStatus::kOk) refused_ = status;
+      return;
+    }
     ContactPoint start;
     if (!e.Inside(r.uv)) {
       start = Bisect(e, fwd, -1.0, kProbeMm);
@@ -586,6 +594,8 @@ class Builder {
   int side_ = 1;
   double max_curvature_ = INFINITY;
   double lo_ = 0.0, hi_ = 0.0;
+  // Why the last pass that could not start from a root was refused (none: no such pass).
+  mutable std::optional<EvalStatus> refused_;
 };
 
 }  // namespace

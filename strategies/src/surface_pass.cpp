@@ -46,6 +46,10 @@ const char* EvalStatusText(EvalStatus status) {
              "top, a ridge or a plane (a saddle, the edge of a flat region), or the strategy holds "
              "the contact point there: the bottom rests on more than one place; tilt the tool or "
              "use a ball end";
+    case EvalStatus::kGuideFold:
+      return "the guide curve bends tighter than the pass's offset from it (its radius of "
+             "curvature here is within 1 % of the offset): the offset line folds over itself; "
+             "use offsets below the guide's radius of curvature or a smoother guide";
     case EvalStatus::kStalled:
       return "the pass has no direction here (the constraint is singular)";
   }
@@ -95,6 +99,7 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
     return EvalStatus::kDegenerateNormal;
   }
   const Vec3J n = big_n * (Jet(side_) / n_norm);
+  out->guide_fold = 0.0;
   Vec3J f;
   switch (constraint_.kind) {
     case PassConstraint::Kind::kPlaneCl:
@@ -109,10 +114,14 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
       const double t = ClosestOnGuide(*constraint_.guide, d.p.x(), d.p.y(), guide_hint);
       out->guide_t = t;
       Eigen::Vector3d gd[3];
-      constraint_.guide->Derivatives(t, 1, gd);
+      constraint_.guide->Derivatives(t, 2, gd);
       const Eigen::Vector2d tangent(gd[1].x(), gd[1].y());
       if (!(tangent.norm() > 0.0)) return EvalStatus::kFeedUndefined;
       const Eigen::Vector2d left = Eigen::Vector2d(-tangent.y(), tangent.x()).normalized();
+      const double curvature =
+          (gd[1].x() * gd[2].y() - gd[1].y() * gd[2].x()) / std::pow(tangent.norm(), 3);
+      out->guide_fold =
+          curvature * Eigen::Vector2d(d.p.x() - gd[0].x(), d.p.y() - gd[0].y()).dot(left);
       guide_point = gd[0];
       guide_left = left;
       const Vec3J m = Eigen::Vector3d(left.x(), left.y(), 0.0).cast<Jet>();
@@ -191,6 +200,21 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   return EvalStatus::kOk;
 }
 
+namespace {
+
+// On the inside of a guide's bend, as far from it as its radius of curvature, the closest point
+// stops being one (the distance is stationary there, then largest): the offset line folds over
+// itself, and which stationary point a solve finds depends on where it starts. A solution is
+// refused short of it, where the closest point already moves a hundred times faster than the
+// contact point.
+bool Folded(const ContactPoint& c, EvalStatus* status) {
+  if (!(c.guide_fold > 0.99)) return false;
+  *status = EvalStatus::kGuideFold;
+  return true;
+}
+
+}  // namespace
+
 int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* anchor_tangent,
                          double target, double anchor_guide_t, Eigen::Vector2d uv,
                          const NewtonOptions& options, ContactPoint* out,
@@ -216,10 +240,13 @@ int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* a
     // jitter from one setpoint to the next by up to twice it, which the axis jerk sees (a period's
     // jerk budget is J dt^3, 5e-6 mm at 5 m/s^3 and 1 ms). The tolerance is what must hold.
     if (std::abs(f1) <= options.arc_tolerance_mm && std::abs(f2) <= options.arc_tolerance_mm) {
-      return it;
+      return Folded(*out, status) ? -1 : it;
     }
     if (it == options.max_iterations || !(dist > 0.0)) {
-      return std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= f2_at_worst ? it : -1;
+      return std::abs(f1) <= options.tolerance_mm && std::abs(f2) <= f2_at_worst &&
+                     !Folded(*out, status)
+                 ? it
+                 : -1;
     }
     Eigen::Matrix2d j;
     j.row(0) = out->dg.transpose();

@@ -63,7 +63,14 @@ struct NewtonOptions {
   double arc_tolerance_mm = 1e-10;
 };
 
-enum class EvalStatus { kOk, kDegenerateNormal, kFeedUndefined, kFlatContact, kStalled };
+enum class EvalStatus {
+  kOk,
+  kDegenerateNormal,
+  kFeedUndefined,
+  kFlatContact,
+  kGuideFold,
+  kStalled
+};
 const char* EvalStatusText(EvalStatus status);
 
 // Everything known at one contact point.
@@ -79,6 +86,9 @@ struct ContactPoint {
   // leading_line: parameter of the closest guide point, the warm start of the next evaluation
   // (the distance to a bending guide has several local minima: a pass follows its own).
   double guide_t = std::numeric_limits<double>::quiet_NaN();
+  // leading_line: the contact point's offset from the guide times the guide's curvature there
+  // (signed, both positive to the left); 1 where the offset line folds over itself.
+  double guide_fold = 0.0;
 };
 
 // Surface + tool + orientation + constraint: the geometry of one pass.
