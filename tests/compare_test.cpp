@@ -353,6 +353,20 @@ TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
   EXPECT_NEAR(highest, top + job.surface->clearance_mm, 1e-9);
   EXPECT_LT(z.front(), top + 1e-9);
   EXPECT_LT(z.back(), top + 1e-9);
+  // The limiter report's feed is the tip's speed, across the passes and links too (each counts
+  // its arc length from 0): the chord between rows over the period, to the arc's excess over it.
+  std::istringstream report(
+      io::FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
+  std::string line;
+  std::getline(report, line);
+  for (std::size_t k = 0; std::getline(report, line); ++k) {
+    const double feed = std::stod(line.substr(line.find(',', line.find(',') + 1) + 1));
+    double chord = 0.0;
+    for (int i = 0; i < 3 && k > 0; ++i) {
+      chord += std::pow(r.table.columns[i][k] - r.table.columns[i][k - 1], 2);
+    }
+    EXPECT_NEAR(feed, std::sqrt(chord) / job.vpop.period_s, 1e-3 * (1.0 + feed)) << "row " << k;
+  }
 }
 
 // Two atomic outputs open at once (the tables, a run's setpoints and limiters) each keep their own

@@ -164,7 +164,12 @@ std::string FormatLimiters(const interp::SetpointTable& table,
   fmt::memory_buffer buf;
   fmt::format_to(std::back_inserter(buf), "{}\n", kLimiterHeader);
   for (std::size_t k = 0; k < limiters.size(); ++k) {
-    const double feed = k ? (arc_length[k] - arc_length[k - 1]) / period_s : 0.0;
+    // Each segment (a pass, a link) counts its arc length from 0, starting at rest where the one
+    // before ended.
+    const double step = k == 0                              ? 0.0
+                        : arc_length[k] < arc_length[k - 1] ? arc_length[k]
+                                                            : arc_length[k] - arc_length[k - 1];
+    const double feed = step / period_s;
     const auto& l = limiters[k];
     const std::string axis =
         l.axis >= 0 ? table.axes[static_cast<std::size_t>(l.axis)] : std::string();
