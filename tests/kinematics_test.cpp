@@ -1,5 +1,6 @@
 // Machine models: inverse-then-forward returns the pose (randomized), branches stay continuous,
 // travel and reachability failures are reported, machine files are read with their units.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <numbers>
@@ -138,6 +139,14 @@ TEST(Xyzac, ReportsTravelAndReach) {
   EXPECT_NE(DescribeInverseFailure(*m, r).find("travel"), std::string::npos);
   const Pose far{Eigen::Vector3d(1000, 0, 0), Eigen::Vector3d::UnitZ()};
   EXPECT_EQ(m->Inverse(far, nullptr, &q).status, InverseStatus::kOutOfTravel);
+  // An overrun of a hair is printed with the digits that show it.
+  const auto& x = m->Axes()[0];
+  const std::string hair =
+      DescribeInverseFailure(*m, {InverseStatus::kOutOfTravel, 0, x.travel_max + 4e-4});
+  EXPECT_NE(hair.find(fmt::format("reach {:.10g} mm, 0.0004 mm outside its travel [{}, {}] mm",
+                                  x.travel_max + 4e-4, x.travel_min, x.travel_max)),
+            std::string::npos)
+      << hair;
 
   const auto xyz =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));

@@ -2,7 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
+#include <cstdlib>
 #include <numbers>
+#include <string>
 
 namespace dtis {
 
@@ -17,10 +20,19 @@ std::string DescribeInverseFailure(const Machine& machine, const InverseResult& 
   const double k = a.rotary ? 180.0 / std::numbers::pi : 1.0;
   const char* unit = a.rotary ? "deg" : "mm";
   switch (result.status) {
-    case InverseStatus::kOutOfTravel:
+    case InverseStatus::kOutOfTravel: {
+      const double v = result.value * k, lo = a.travel_min * k, hi = a.travel_max * k;
+      // As many digits as it takes for the value printed to be outside the printed travel.
+      std::string shown;
+      for (int digits = 6; digits <= 17; ++digits) {
+        shown = fmt::format("{:.{}g}", v, digits);
+        const double back = std::strtod(shown.c_str(), nullptr);
+        if (back < lo || back > hi || !std::isfinite(v)) break;
+      }
       return fmt::format(
-          "axis {} would have to reach {:.6g} {}, outside its travel [{:.6g}, {:.6g}] {}", a.name,
-          result.value * k, unit, a.travel_min * k, a.travel_max * k, unit);
+          "axis {} would have to reach {} {}, {:.3g} {} outside its travel [{:.6g}, {:.6g}] {}",
+          a.name, shown, unit, v < lo ? lo - v : v - hi, unit, lo, hi, unit);
+    }
     case InverseStatus::kBranchJump:
       return fmt::format(
           "axis {} would have to jump to {:.6g} {} (the tool axis passes a singularity that the "
