@@ -79,6 +79,27 @@ TEST(StepModel, ListsTheFacesOfRealFiles) {
   const StepModel fuselage =
       StepModel::Load(test::Source("samples/parts/occt_bug28366_fuselage_8faces.stp"));
   EXPECT_EQ(fuselage.FaceCount(), 8);
+  // A plane with a hole: its area against the share of a 400 x 400 grid over its (u, v) box (in
+  // mm on a plane) that the trim classifier puts inside.
+  const StepModel turbine =
+      StepModel::Load(test::Source("samples/parts/occt_ec_turbine-A_53faces_rational.stp"));
+  const auto& plate = turbine.Info(2);
+  EXPECT_EQ(plate.type, "plane");
+  EXPECT_EQ(plate.holes, 1);
+  EXPECT_EQ(trj8.Info(1).holes, 0);
+  const FaceSurface surface(turbine.Face(2), "plate");
+  constexpr int kGrid = 400;
+  int inside = 0;
+  for (int i = 0; i < kGrid; ++i) {
+    for (int j = 0; j < kGrid; ++j) {
+      inside += surface.Inside(plate.u0 + (plate.u1 - plate.u0) * (i + 0.5) / kGrid,
+                               plate.v0 + (plate.v1 - plate.v0) * (j + 0.5) / kGrid);
+    }
+  }
+  const double sampled =
+      (plate.u1 - plate.u0) * (plate.v1 - plate.v0) * inside / (double(kGrid) * kGrid);
+  EXPECT_NEAR(plate.area_mm2, sampled, 0.01 * sampled);
+  EXPECT_LT(plate.area_mm2, 0.99 * (plate.u1 - plate.u0) * (plate.v1 - plate.v0));
 }
 
 TEST(StepModel, BadFilesGetOneClearMessage) {

@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <BRepAdaptor_Surface.hxx>
+#include <BRepGProp.hxx>
 #include <BRepTools.hxx>
+#include <GProp_GProps.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Reader.hxx>
@@ -111,6 +113,11 @@ FaceInfo Describe(int index, const TopoDS_Face& face) {
   BRepTools::UVBounds(face, info.u0, info.u1, info.v0, info.v1);
   info.trimmed = IsTrimmed(face, s);
   std::tie(info.box_min, info.box_max) = FaceBox(face);
+  GProp_GProps props;
+  BRepGProp::SurfaceProperties(face, props);
+  info.area_mm2 = props.Mass();
+  for (TopExp_Explorer w(face, TopAbs_WIRE); w.More(); w.Next()) ++info.holes;
+  info.holes = std::max(0, info.holes - 1);
   return info;
 }
 
@@ -167,17 +174,22 @@ std::vector<FaceInfo> StepModel::Infos() const {
 std::string FormatFaceTable(const StepModel& model) {
   std::string out = fmt::format("{}: {} face{}\n", model.File(), model.FaceCount(),
                                 model.FaceCount() == 1 ? "" : "s");
-  out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7}  {:<40}  {}\n", "face", "type",
-                     "degree", "poles", "rational", "trimmed", "uv bounds", "size mm (x y z)");
+  out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10}  {:<40}  {:<26}  {}\n",
+                     "face", "type", "degree", "poles", "rational", "trimmed", "holes", "area mm2",
+                     "uv bounds", "from mm (x y z)", "size mm (x y z)");
   for (const FaceInfo& f : model.Infos()) {
     const std::string degree = f.u_degree ? fmt::format("{}x{}", f.u_degree, f.v_degree) : "-";
     const std::string poles = f.u_poles ? fmt::format("{}x{}", f.u_poles, f.v_poles) : "-";
     const std::string uv =
         fmt::format("[{:.6g}, {:.6g}] x [{:.6g}, {:.6g}]", f.u0, f.u1, f.v0, f.v1);
     const Eigen::Vector3d size = f.box_max - f.box_min;
-    out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7}  {:<40}  {:.4g} {:.4g} {:.4g}\n",
-                       f.index, f.type, degree, poles, f.rational ? "yes" : "no",
-                       f.trimmed ? "yes" : "no", uv, size.x(), size.y(), size.z());
+    const std::string from =
+        fmt::format("{:.6g} {:.6g} {:.6g}", f.box_min.x(), f.box_min.y(), f.box_min.z());
+    out += fmt::format(
+        "{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10.6g}  {:<40}  {:<26}  {:.4g} {:.4g} "
+        "{:.4g}\n",
+        f.index, f.type, degree, poles, f.rational ? "yes" : "no", f.trimmed ? "yes" : "no",
+        f.holes, f.area_mm2, uv, from, size.x(), size.y(), size.z());
   }
   return out;
 }

@@ -22,6 +22,8 @@ struct FaceInfo {
   double u0 = 0, u1 = 0, v0 = 0, v1 = 0;              // the face's UV bounds
   Eigen::Vector3d box_min = Eigen::Vector3d::Zero();  // axis-aligned bounding box, mm
   Eigen::Vector3d box_max = Eigen::Vector3d::Zero();
+  double area_mm2 = 0.0;  // of the trimmed face
+  int holes = 0;          // inner boundary loops
 };
 
 class StepModel {
