@@ -21,7 +21,7 @@ struct Candidate {
   ContactPoint start, end;
   double length = 0.0;
   double order = 0.0;  // position of the start along the travel, to sort passes of one line
-  std::vector<FlatPiece> flats;
+  std::vector<Bridge> bridges;
 };
 
 class Builder {
@@ -77,7 +77,7 @@ class Builder {
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
       list.passes.push_back(
           std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, c.start, c.end,
-                                        c.length, spec_.newton, c.flats));
+                                        c.length, spec_.newton, c.bridges));
     }
     return list;
   }
@@ -236,10 +236,6 @@ class Builder {
         EvalStatus sa = EvalStatus::kStalled;
         for (std::size_t i = 0; i < loop.size(); ++i) {
           const EvalStatus sb = e.Evaluate(loop[i], &b);
-          if (sb == EvalStatus::kDegenerateNormal) {
-            Fail(line, c, 0.0, loop[i],
-                 fmt::format("{}; passes end on this boundary", EvalStatusText(sb)));
-          }
           if (i > 0 && sa == EvalStatus::kOk && sb == EvalStatus::kOk &&
               ((a.g <= 0.0 && b.g > 0.0) || (a.g > 0.0 && b.g <= 0.0))) {
             Root(line, constraint, e, loop[i - 1], a.g, loop[i], out);
@@ -353,7 +349,7 @@ class Builder {
           h *= 0.5;
           continue;
         }
-        FlatPiece piece;
+        Bridge piece;
         if (OverTop(e, cur, s, &piece)) {
           for (int i = 1; i < 8; ++i) {
             ContactPoint on = cur;
@@ -363,10 +359,18 @@ class Builder {
             on.tip = piece.Tip(piece.s_in + (piece.s_out - piece.s_in) * i / 8.0);
             CheckGouge(*cand, on, piece.s_in);
           }
-          cand->flats.push_back(piece);
+          cand->bridges.push_back(piece);
           cur = piece.exit;
           s = piece.s_exit;
           CheckGouge(*cand, cur, s);
+          continue;
+        }
+        if (AcrossPole(e, cur, s, &piece)) {
+          cand->bridges.push_back(piece);
+          cur = piece.exit;
+          s = piece.s_exit;
+          CheckGouge(*cand, cur, s);
+          h = full / 1024.0;
           continue;
         }
         Fail(cand->line, cand->constraint, s, cur.uv,
@@ -408,12 +412,12 @@ class Builder {
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
-  // nose on a fixed axis comes onto a top of the face, the piece over it (FlatPiece). False if
+  // nose on a fixed axis comes onto a top of the face, the piece over it (Bridge). False if
   // this is not such a place: another tool, orientation or strategy (their contact point is
   // held by the strategy), no point nearby where the normal is the axis, a face that does not
   // bend away from the tool all round there (a saddle or a valley: the bottom would rest on two
   // places), or a plane that misses the bottom's disc around the top.
-  bool OverTop(const PassEvaluator& e, const ContactPoint& cur, double s, FlatPiece* piece) const {
+  bool OverTop(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
     const PassConstraint& c = e.Constraint();
     const double big_r = tool_.TorusRadius();
     if (!(big_r > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
@@ -486,6 +490,59 @@ class Builder {
     piece->s_in = s + (tip_in - cur.tip).norm();
     piece->s_out = piece->s_in + 2.0 * half;
     piece->s_exit = piece->s_out + (exit.tip - tip_out).norm();
+    return true;
+  }
+
+  // The trace, at contact point `cur` (arc length s), cannot step on because the contact point
+  // has come to a collapsed edge of the (u, v) parametrization (a pole: S_u or S_v vanishes along
+  // an edge of the UV box): the bridge across it (see Bridge), to the point as far past the pole
+  // on the parameter line that leaves it the way the contact point came in. False if `cur` is not
+  // at such an edge.
+  bool AcrossPole(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
+    const double su = cur.dp.col(0).norm(), sv = cur.dp.col(1).norm();
+    if (!(std::min(su, sv) < 1e-3 * std::max(su, sv))) return false;
+    // The pole's parameter: the UV box edge the collapsing direction's other parameter is near.
+    const bool u_collapses = su < sv;  // then the pole is an edge v = const, meridians u = const
+    const double along = u_collapses ? cur.uv.y() : cur.uv.x();
+    const double lo = u_collapses ? face_.V0() : face_.U0(),
+                 hi = u_collapses ? face_.V1() : face_.U1();
+    const double pole = std::abs(along - lo) < std::abs(along - hi) ? lo : hi;
+    Eigen::Vector2d at_pole = cur.uv;
+    (u_collapses ? at_pole.y() : at_pole.x()) = pole;
+    geometry::SurfaceDerivatives d;
+    face_.D2(at_pole.x(), at_pole.y(), &d);
+    const Eigen::Vector3d pole_point = d.p;
+    // As far past the pole as the contact point is before it, on the line through the pole.
+    const Eigen::Vector3d mirrored = 2.0 * pole_point - cur.p;
+    Eigen::Vector2d guess = cur.uv;
+    double best = INFINITY;
+    const double m0 = u_collapses ? face_.U0() : face_.V0(),
+                 m1 = u_collapses ? face_.U1() : face_.V1();
+    constexpr int kScan = 720;
+    for (int k = 0; k <= kScan; ++k) {
+      Eigen::Vector2d uv = cur.uv;
+      (u_collapses ? uv.x() : uv.y()) = m0 + (m1 - m0) * k / kScan;
+      face_.D2(uv.x(), uv.y(), &d);
+      if ((d.p - mirrored).norm() < best) best = (d.p - mirrored).norm(), guess = uv;
+    }
+    ContactPoint guessed;
+    if (e.Evaluate(guess, &guessed) != EvalStatus::kOk) return false;
+    ContactPoint exit;
+    EvalStatus status;
+    if (e.SolveChord(cur.tip, (guessed.tip - cur.tip).norm(), guess, spec_.newton, &exit, &status,
+                     cur.guide_t) < 0 ||
+        (exit.tip - cur.tip).dot(cur.tangent) <= 0.0 || exit.tangent.dot(cur.tangent) < 0.99 ||
+        (exit.tip - cur.tip).norm() > 1e-2 || !e.Inside(exit.uv)) {
+      return false;
+    }
+    piece->entry = cur;
+    piece->exit = exit;
+    piece->top_uv = at_pole;
+    piece->top = pole_point;
+    piece->tip_in = cur.tip;
+    piece->direction = (exit.tip - cur.tip).normalized();
+    piece->s_start = piece->s_in = s;
+    piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
     return true;
   }
 

@@ -145,7 +145,7 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   if (!geometry::TipFromContact(tool_, s, n, a, &tip)) {
     // Sitting flat. Where the face is flat too (a plane across the axis), the whole bottom
     // touches and the tool is placed with its tip on the contact point; at a top (the face
-    // bends away) the contact point does not fix the tip: the builder's FlatPiece.
+    // bends away) the contact point does not fix the tip: the builder's Bridge.
     const Eigen::Vector3d nv = Value(n);
     const double e = d.su.squaredNorm(), g = d.sv.squaredNorm();
     const double bend = std::max({std::abs(nv.dot(d.suu)) / e, std::abs(nv.dot(d.svv)) / g,
@@ -352,7 +352,7 @@ double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector
   return chord * h / std::sin(h);
 }
 
-Eigen::Vector3d FlatPiece::Tip(double s) const {
+Eigen::Vector3d Bridge::Tip(double s) const {
   const Eigen::Vector3d tip_out = tip_in + (s_out - s_in) * direction;
   if (s <= s_in) {
     return s_in > s_start ? entry.tip + (tip_in - entry.tip) * ((s - s_start) / (s_in - s_start))
@@ -365,36 +365,36 @@ Eigen::Vector3d FlatPiece::Tip(double s) const {
 
 SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
                          const ContactPoint& end, double length, const NewtonOptions& options,
-                         std::vector<FlatPiece> flats)
+                         std::vector<Bridge> bridges)
     : eval_(evaluator),
       index_(index),
       start_(start),
       end_(end),
       length_(length),
       options_(options),
-      flats_(std::move(flats)) {}
+      bridges_(std::move(bridges)) {}
 
-const FlatPiece* SurfacePass::FlatAt(double s) const {
-  for (const FlatPiece& f : flats_) {
+const Bridge* SurfacePass::BridgeAt(double s) const {
+  for (const Bridge& f : bridges_) {
     if (s >= f.s_start && s <= f.s_exit) return &f;
   }
   return nullptr;
 }
 
-PathSample SurfacePass::OnFlat(const FlatPiece& flat, double s) const {
+PathSample SurfacePass::OnBridge(const Bridge& flat, double s) const {
   PathSample out;
   out.state.s = s;
   out.state.u = flat.top_uv.x();
   out.state.v = flat.top_uv.y();
   out.state.w = std::numeric_limits<double>::quiet_NaN();
-  out.state.piece = static_cast<std::int32_t>(&flat - flats_.data()) + 1;
+  out.state.piece = static_cast<std::int32_t>(&flat - bridges_.data()) + 1;
   out.pose = {flat.Tip(s), flat.entry.axis};
   return out;
 }
 
 std::vector<double> SurfacePass::Breaks(double s0, double s1) const {
   std::vector<double> out;
-  for (const FlatPiece& f : flats_) {
+  for (const Bridge& f : bridges_) {
     for (const double b : {f.s_in, f.s_out}) {
       if (b >= s0 && b <= s1) out.push_back(b);
     }
@@ -414,9 +414,9 @@ Pose SurfacePass::StartPose() const { return {start_.tip, start_.axis}; }
 Pose SurfacePass::EndPose() const { return {end_.tip, end_.axis}; }
 
 EvalStatus SurfacePass::Evaluate(const PathState& state, ContactPoint* out) const {
-  if (state.piece > 0 && static_cast<std::size_t>(state.piece) <= flats_.size()) {
+  if (state.piece > 0 && static_cast<std::size_t>(state.piece) <= bridges_.size()) {
     // On a top: the bottom sits on it, the normal is the axis.
-    const FlatPiece& f = flats_[static_cast<std::size_t>(state.piece - 1)];
+    const Bridge& f = bridges_[static_cast<std::size_t>(state.piece - 1)];
     *out = f.entry;
     out->uv = f.top_uv;
     out->p = f.top;
@@ -454,18 +454,18 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   // the poses before it to the arc tolerance, not just to the trace's).
   const double target = std::min(s, length_);
   if (s > length_) out.status = PathStatus::kEnd;
-  if (const FlatPiece* flat = FlatAt(target)) {
+  if (const Bridge* flat = BridgeAt(target)) {
     const PathStatus status = out.status;
-    out = OnFlat(*flat, target);
+    out = OnBridge(*flat, target);
     out.status = status;
     return out;
   }
   int from_slot = 0;
   ContactPoint cur;
   double cur_s = from.s;
-  if (from.piece > 0 && static_cast<std::size_t>(from.piece) <= flats_.size()) {
+  if (from.piece > 0 && static_cast<std::size_t>(from.piece) <= bridges_.size()) {
     // From a top: march on from the contact point on the side of the target.
-    const FlatPiece& f = flats_[static_cast<std::size_t>(from.piece - 1)];
+    const Bridge& f = bridges_[static_cast<std::size_t>(from.piece - 1)];
     const bool ahead = target > from.s;
     cur = ahead ? f.exit : f.entry;
     cur_s = ahead ? f.s_exit : f.s_start;
@@ -474,19 +474,19 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
   }
   // The march stops at the traced contact point before a top it would cross, and goes on from
   // the one after it.
-  const auto next_flat = [&]() -> const FlatPiece* {
+  const auto next_bridge = [&]() -> const Bridge* {
     if (target > cur_s) {
-      for (const FlatPiece& f : flats_) {
+      for (const Bridge& f : bridges_) {
         if (f.s_start >= cur_s && f.s_start < target) return &f;
       }
     } else {
-      for (auto f = flats_.rbegin(); f != flats_.rend(); ++f) {
+      for (auto f = bridges_.rbegin(); f != bridges_.rend(); ++f) {
         if (f->s_exit <= cur_s && f->s_exit > target) return &*f;
       }
     }
     return nullptr;
   };
-  const FlatPiece* hop = next_flat();
+  const Bridge* hop = next_bridge();
   // The march and the builder's trace sum their arcs over different steps: they agree to far
   // better than this. Within it of an end, the face's boundary is that end.
   constexpr double kSnapMm = 1e-4;
@@ -505,7 +505,7 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
       const bool ahead = target > cur_s;
       cur = ahead ? hop->exit : hop->entry;
       cur_s = ahead ? hop->s_exit : hop->s_start;
-      hop = next_flat();
+      hop = next_bridge();
       continue;
     }
     if (target == cur_s || stalled) break;

@@ -152,15 +152,20 @@ double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, d
 // arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb);
 
-// Where a flat end or bull nose on a fixed axis passes over a top of the face (a point where the
-// normal is the tool axis and the face bends away from the tool all round), its flat bottom sits
-// on the top while the tip slides across: the contact point stays put and does not fix the cutter
-// location, so the pass cannot be followed by contact point there. The tip runs straight, at the
-// top's height, along the strategy's plane, over the chord of the disc of radius R around the top:
-// from `entry` (the last contact point traced before it, at s_start) to the chord's ends
-// (s_in, s_out) and on to `exit` (the first contact point after it, at s_exit), where the contact
-// point leaves the top on the other side.
-struct FlatPiece {
+// A stretch of a pass that is not followed by contact point, bridged by a straight tip motion
+// from `entry` (the last contact point traced before it, at s_start) to `exit` (the first one
+// after it, at s_exit):
+// - Over a top. Where a flat end or bull nose on a fixed axis passes over a top of the face (the
+//   normal is the tool axis and the face bends away from the tool all round), its flat bottom
+//   sits on the top while the tip slides across: the contact point stays put and does not fix
+//   the cutter location. The tip runs straight at the top's height along the strategy's plane,
+//   over the chord (s_in, s_out) of the disc of radius R around the top, and the contact point
+//   leaves the top on the other side.
+// - Across a pole. Where the contact point crosses a collapsed edge of the (u, v) parametrization
+//   (a sphere's pole), (u, v) jumps while the contact point does not; the trace stops within
+//   1e-4 mm of it, and the bridge is the straight chord to the first point past it (s_in =
+//   s_start, s_out = s_exit; `top` is the pole).
+struct Bridge {
   double s_start = 0.0, s_in = 0.0, s_out = 0.0, s_exit = 0.0;
   Eigen::Vector3d tip_in = Eigen::Vector3d::Zero();
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // unit, along the travel
@@ -176,10 +181,10 @@ struct FlatPiece {
 class SurfacePass final : public PathSource {
  public:
   // `start` and `end` lie on the face's boundary, `length` is the tip arc length between them.
-  // `flats`: the pass's flat pieces, sorted by arc length.
+  // `bridges`: where the pass is not followed by contact point, sorted by arc length.
   SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
               const ContactPoint& end, double length, const NewtonOptions& options,
-              std::vector<FlatPiece> flats = {});
+              std::vector<Bridge> bridges = {});
 
   PathState Start() const override;
   std::optional<double> Length() const override { return length_; }
@@ -198,15 +203,15 @@ class SurfacePass final : public PathSource {
  private:
   const ContactPoint& From(const PathState& state, int* slot) const;
   // The flat piece whose [s_start, s_exit] holds s (nullptr if none).
-  const FlatPiece* FlatAt(double s) const;
-  PathSample OnFlat(const FlatPiece& flat, double s) const;
+  const Bridge* BridgeAt(double s) const;
+  PathSample OnBridge(const Bridge& flat, double s) const;
 
   PassEvaluator eval_;
   int index_;
   ContactPoint start_, end_;
   double length_;
   NewtonOptions options_;
-  std::vector<FlatPiece> flats_;
+  std::vector<Bridge> bridges_;
   // The last state stepped from and the last result: the planner asks several trial arc lengths
   // from the same state, then steps from one of the results.
   mutable ContactPoint cache_[2];
