@@ -1,11 +1,13 @@
 // Surface strategies (DTIS): STEP import, passes solved by Newton on the exact face, every planned
 // setpoint on the cutter-location surface and on its strategy plane, and the error paths.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepBuilderAPI_MakeWire.hxx>
 #include <BRep_Tool.hxx>
+#include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <GeomAdaptor_Surface.hxx>
@@ -17,6 +19,9 @@
 #include <Geom_RectangularTrimmedSurface.hxx>
 #include <Geom_SphericalSurface.hxx>
 #include <Geom_Surface.hxx>
+#include <TColStd_Array1OfInteger.hxx>
+#include <TColStd_Array1OfReal.hxx>
+#include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
 #include <TopoDS_Wire.hxx>
 #include <cmath>
@@ -1021,6 +1026,99 @@ TEST(SurfacePass, APassAcrossASpheresPoleGoesOver) {
     }
   }
   EXPECT_TRUE(over);
+}
+
+// A wavy ruled B-spline face: between z = 3 sin(2 pi y / 30) along x = 0 and the same wave a sixth
+// of a period on along x = 60 (valleys of radius 7.6 mm), y in [0, 60].
+TopoDS_Face WavyRuledFace() {
+  Handle(Geom_BSplineCurve) wave[2];
+  for (int k = 0; k < 2; ++k) {
+    constexpr int kPoints = 41;
+    TColgp_Array1OfPnt points(1, kPoints);
+    for (int i = 1; i <= kPoints; ++i) {
+      const double y = 60.0 * (i - 1) / (kPoints - 1);
+      points(i) =
+          gp_Pnt(60.0 * k, y,
+                 3.0 * std::sin(2.0 * std::numbers::pi * y / 30.0 + k * std::numbers::pi / 3));
+    }
+    wave[k] = GeomAPI_PointsToBSpline(points, 3, 3, GeomAbs_C2, 1e-4).Curve();
+  }
+  const int n = wave[0]->NbPoles();
+  EXPECT_EQ(wave[1]->NbPoles(), n);
+  TColgp_Array2OfPnt poles(1, 2, 1, n);
+  for (int k = 0; k < 2; ++k) {
+    for (int i = 1; i <= n; ++i) poles(k + 1, i) = wave[k]->Pole(i);
+  }
+  TColStd_Array1OfReal u_knots(1, 2), v_knots(1, wave[0]->NbKnots());
+  TColStd_Array1OfInteger u_mults(1, 2), v_mults(1, wave[0]->NbKnots());
+  u_knots(1) = 0.0, u_knots(2) = 1.0, u_mults(1) = u_mults(2) = 2;
+  wave[0]->Knots(v_knots);
+  wave[0]->Multiplicities(v_mults);
+  return BRepBuilderAPI_MakeFace(Handle(Geom_BSplineSurface)(new Geom_BSplineSurface(
+                                     poles, u_knots, v_knots, u_mults, v_mults, 1, 3)),
+                                 1e-7)
+      .Face();
+}
+
+TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
+  // What holds today: a ball R3 builds every pass of plane_cl, uv and leading_line, 3-axis and
+  // tilted 10 deg, never under the face (3-axis passes planned and verified); a flat bottom (flat
+  // end R4, bull nose R5 r1) cannot follow its valleys and every combination is refused with
+  // where and how deep.
+  const TopoDS_Face face = WavyRuledFace();
+  const FaceSurface surface(face, "wavy");
+  Orientation tilted;
+  tilted.kind = Orientation::Kind::kTiltYaw;
+  tilted.tilt_rad = 10.0 * std::numbers::pi / 180.0;
+  const auto guide = std::make_shared<const geometry::BSplineCurve>(geometry::BSplineCurveData{
+      3, {0, 0, 0, 0, 1, 1, 1, 1}, {{30, -5, 0}, {25, 20, 0}, {35, 40, 0}, {30, 65, 0}}, {}});
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const auto xyzac =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  for (const Tool& tool :
+       {Ball(3.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0), Torus(Tool::Kind::kFlatEnd, 4.0, 0.0)}) {
+    for (const Orientation& o : {Orientation{}, tilted}) {
+      for (const auto kind : {StrategySpec::Kind::kPlaneCl, StrategySpec::Kind::kUv,
+                              StrategySpec::Kind::kLeadingLine}) {
+        SCOPED_TRACE(
+            fmt::format("{}, {}, {}", tool.Describe(), o.Describe(), StrategySpec::KindName(kind)));
+        StrategySpec spec;
+        spec.kind = kind;
+        spec.stepover_mm = 6.0;
+        spec.along_u = false;
+        if (kind == StrategySpec::Kind::kLeadingLine) spec.guide = guide;
+        if (tool.kind != Tool::Kind::kBallEnd) {
+          try {
+            strategies::BuildPasses(surface, tool, o, spec);
+            ADD_FAILURE() << "a flat bottom across the valleys must be refused";
+          } catch (const Error& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find("the tool gouges"), std::string::npos) << what;
+            EXPECT_NE(what.find("(u, v)"), std::string::npos) << what;
+          }
+          continue;
+        }
+        spec.max_passes = 3;
+        const auto passes = strategies::BuildPasses(surface, tool, o, spec);
+        ASSERT_EQ(passes.passes.size(), 3u);
+        if (o.kind == Orientation::Kind::kFixed) {
+          // (Tilted, the axis crosses the XYZAC's A = 0 where C turns fast: planning that is the
+          // singular sample's business, not this test's.)
+          interp::VpopOptions opt;
+          opt.feed_mm_s = 50.0;
+          const test::Planned planned = test::PlanAndVerify(*passes.passes[1], *xyz, opt);
+          EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+        }
+        ForPosesAlong(passes, 0.1, 0.4,
+                      [&](const strategies::SurfacePass& pass, const PathSample& smp,
+                          const strategies::ContactPoint& c) {
+                        EXPECT_GT(SampledClearance(face, tool, smp.pose, c.uv, c.n), -1e-6)
+                            << pass.Describe(smp.state);
+                      });
+      }
+    }
+  }
 }
 
 TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {

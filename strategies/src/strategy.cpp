@@ -566,9 +566,12 @@ class Builder {
       Fail(cand.line, cand.constraint, s, p.uv,
            fmt::format("the tool gouges: touching the face here, it goes {:.3g} mm into it at "
                        "({:.6g}, {:.6g}, {:.6g}), (u, v) = ({:.9g}, {:.9g}), {:.3g} mm from the "
-                       "contact point (a concave region narrower than the {})",
+                       "contact point (a concave region narrower than the {}{})",
                        d.depth, d.at.x(), d.at.y(), d.at.z(), d.uv.x(), d.uv.y(),
-                       (d.at - p.p).norm(), tool_.Describe()));
+                       (d.at - p.p).norm(), tool_.Describe(),
+                       tool_.kind == geometry::Tool::Kind::kBallEnd
+                           ? ": use a smaller ball"
+                           : ": a flat bottom cannot follow a valley; use a ball end"));
     }
   }
 
