@@ -350,8 +350,10 @@ class Builder {
           continue;
         }
         Bridge piece;
-        if (OverTop(e, cur, s, &piece)) {
-          for (int i = 1; i < 8; ++i) {
+        const bool top = OverTop(e, cur, s, &piece);
+        if (top || AcrossPole(e, cur, s, &piece)) {
+          // Over a top the bottom's disc rides the chord: checked along it like any step.
+          for (int i = 1; i < 8 && top; ++i) {
             ContactPoint on = cur;
             on.p = piece.top;
             on.uv = piece.top_uv;
@@ -363,14 +365,7 @@ class Builder {
           cur = piece.exit;
           s = piece.s_exit;
           CheckGouge(*cand, cur, s);
-          continue;
-        }
-        if (AcrossPole(e, cur, s, &piece)) {
-          cand->bridges.push_back(piece);
-          cur = piece.exit;
-          s = piece.s_exit;
-          CheckGouge(*cand, cur, s);
-          h = full / 1024.0;
+          h = full / 1024.0;  // where the halving left it
           continue;
         }
         Fail(cand->line, cand->constraint, s, cur.uv,
@@ -446,15 +441,10 @@ class Builder {
       uv -= j.completeOrthogonalDecomposition().solve(f);
     }
     if (!found || (d.p - cur.p).norm() > 1e-2) return false;
-    const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(e.Side());
+    const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(side_);
     if (n.dot(a) < 0.0) return false;
     // Bends away from the tool all round (a crest's zero curvature along it too).
-    const double ee = d.su.dot(d.su), ff = d.su.dot(d.sv), gg = d.sv.dot(d.sv);
-    const double l = n.dot(d.suu), m = n.dot(d.suv), nn = n.dot(d.svv);
-    const double det1 = ee * gg - ff * ff, b = ee * nn - 2.0 * ff * m + gg * l,
-                 det2 = l * nn - m * m;
-    const double toward = (b + std::sqrt(std::max(0.0, b * b - 4.0 * det1 * det2))) / (2.0 * det1);
-    if (toward > 1e-9) return false;
+    if (CurvatureTowards(d, n) > 1e-9) return false;
     // The bottom's disc around the top, cut by the strategy's plane.
     const Eigen::Vector3d across = c.normal - c.normal.dot(a) * a;
     if (across.norm() < 1e-9) return false;
@@ -597,8 +587,6 @@ class Builder {
     Eigen::Vector3d e1 = p.n - p.n.dot(a) * a;
     e1 = e1.norm() > 1e-9 ? e1.normalized() : Eigen::Vector3d(a.unitOrthogonal());
     const Eigen::Vector3d e2 = a.cross(e1);
-    // The face's normal is S_u x S_v on the tool's side, its opposite on the other.
-    const double side = p.dp.col(0).cross(p.dp.col(1)).dot(p.n) > 0.0 ? 1.0 : -1.0;
     const double r = tool_.corner_radius, big_r = tool_.TorusRadius();
     constexpr int kAround = 16, kRings = 2, kCorner = 4;
     Depth deepest;
@@ -611,10 +599,7 @@ class Builder {
       Eigen::Vector2d uv =
           p.uv - j.inverse() * Eigen::Vector2d((p.p - x).dot(e1), (p.p - x).dot(e2));
       for (int it = 0; it < 12; ++it) {
-        if (!(uv.x() >= face_.U0() && uv.x() <= face_.U1() && uv.y() >= face_.V0() &&
-              uv.y() <= face_.V1())) {
-          return;
-        }
+        if (!face_.InBox(uv.x(), uv.y())) return;
         face_.D2(uv.x(), uv.y(), &d);
         const Eigen::Vector3d off = d.p - x;
         const Eigen::Vector2d f(off.dot(e1), off.dot(e2));
@@ -622,7 +607,9 @@ class Builder {
           // How far the point lies under the face's tangent plane at the foot (on a wall nearly
           // along the axis, the depth along the axis would magnify a rounding error).
           const Eigen::Vector3d normal = d.su.cross(d.sv);
-          const double depth = off.dot(a) > 0.0 ? off.dot(normal) * (side / normal.norm()) : -1.0;
+          const double depth = off.dot(a) > 0.0
+                                   ? off.dot(normal) * (static_cast<double>(side_) / normal.norm())
+                                   : -1.0;
           // Only a gouge asks whether the face is there (near a trimming loop the classifier).
           if (depth > std::max(deepest.depth, kGougeMm) && face_.Inside(uv.x(), uv.y())) {
             deepest = {depth, x, uv};

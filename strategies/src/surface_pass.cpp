@@ -191,13 +191,17 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   if (w.dot(out->feed) < 0.0) perp = -perp, w = -w;
   out->duv = perp / speed;
   out->tangent = w / speed;
-  // Principal curvatures with the normal on the tool's side: positive bends towards the tool.
+  // With the normal on the tool's side: positive bends towards the tool.
+  out->concave_curvature = CurvatureTowards(d, out->n);
+  return EvalStatus::kOk;
+}
+
+double CurvatureTowards(const geometry::SurfaceDerivatives& d, const Eigen::Vector3d& n) {
   const double e = d.su.dot(d.su), ff = d.su.dot(d.sv), gg = d.sv.dot(d.sv);
-  const double l = out->n.dot(d.suu), m = out->n.dot(d.suv), nn = out->n.dot(d.svv);
+  const double l = n.dot(d.suu), m = n.dot(d.suv), nn = n.dot(d.svv);
   const double det1 = e * gg - ff * ff, b = e * nn - 2.0 * ff * m + gg * l, det2 = l * nn - m * m;
   const double disc = std::max(0.0, b * b - 4.0 * det1 * det2);
-  out->concave_curvature = (b + std::sqrt(disc)) / (2.0 * det1);
-  return EvalStatus::kOk;
+  return (b + std::sqrt(disc)) / (2.0 * det1);
 }
 
 namespace {

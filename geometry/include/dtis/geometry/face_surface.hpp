@@ -57,6 +57,8 @@ class FaceSurface {
   // Away from the trimming loops the answer comes from a grid over the UV box (TrimGrid below);
   // near them, from OpenCASCADE's classifier, as InsideByClassifier.
   bool Inside(double u, double v) const;
+  // (u, v) lies in the face's UV box (to 1e-12 of its size), whatever the trimming loops say.
+  bool InBox(double u, double v) const;
   // Inside, always asking OpenCASCADE's classifier (BRepTopAdaptor_FClass2d) of a trimmed face.
   bool InsideByClassifier(double u, double v) const;
   // The share of the UV box the grid answers for without the classifier (1 untrimmed, 0 without
@@ -95,7 +97,6 @@ class FaceSurface {
   };
   TrimGrid grid_;
   void BuildTrimGrid();
-  bool InBox(double u, double v) const;
 };
 
 }  // namespace dtis::geometry

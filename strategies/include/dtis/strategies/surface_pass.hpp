@@ -152,6 +152,10 @@ double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, d
 // arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
 double ArcFromChord(double chord, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb);
 
+// The surface's largest principal curvature at d, with unit normal n: positive where it bends
+// towards n's side, 1/mm.
+double CurvatureTowards(const geometry::SurfaceDerivatives& d, const Eigen::Vector3d& n);
+
 // A stretch of a pass that is not followed by contact point, bridged by a straight tip motion
 // from `entry` (the last contact point traced before it, at s_start) to `exit` (the first one
 // after it, at s_exit):
