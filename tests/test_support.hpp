@@ -4,9 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dtis/core/error.hpp"
@@ -27,15 +29,21 @@ inline std::string Source(const std::string& relative) {
   return std::string(DTIS_SOURCE_DIR) + "/" + relative;
 }
 
-// `f` throws dtis::Error with `fragment` in its message.
+// `f` throws dtis::Error with every one of `fragments` in its message.
 template <typename F>
-void ExpectError(F&& f, const std::string& fragment) {
+void ExpectError(F&& f, std::initializer_list<std::string> fragments) {
   try {
     f();
-    FAIL() << "expected an error containing '" << fragment << "'";
+    FAIL() << "expected an error containing '" << *fragments.begin() << "'";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    for (const std::string& fragment : fragments) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
   }
+}
+template <typename F>
+void ExpectError(F&& f, const std::string& fragment) {
+  ExpectError(std::forward<F>(f), {fragment});
 }
 
 // The PathSource contract: asked for an arc length a few ulps from a state it handed out, a source
