@@ -785,7 +785,7 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
     const double eps = 1e-7 * std::max(face.U1() - face.U0(), face.V1() - face.V0());
     for (const auto& loop : face.Boundary(40)) {
       for (const Eigen::Vector2d& p : loop) {
-        for (const Eigen::Vector2d d :
+        for (const Eigen::Vector2d& d :
              {Eigen::Vector2d(0, 0), Eigen::Vector2d(eps, 0), Eigen::Vector2d(-eps, 0),
               Eigen::Vector2d(0, eps), Eigen::Vector2d(0, -eps)}) {
           const Eigen::Vector2d q = p + d;

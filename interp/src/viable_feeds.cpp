@@ -28,11 +28,13 @@ constexpr double kChordTolerance = 2e-4;
 // rest first. Newton from h / v.
 double TimeToCover(double v, double a, double j, double h) {
   // Start from the series of the root in h when the feed dominates, else from the jerk alone.
-  double t = std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+  double t;
   if (v > 1e-9) {
     const double t1 = h / v;
     const double t2 = t1 - a * t1 * t1 / (2.0 * v);
     t = t2 > 0.5 * t1 ? t2 : t1;
+  } else {
+    t = std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
   }
   for (int it = 0; it < 40; ++it) {
     const double f = t * (v + t * (a / 2.0 + t * j / 6.0)) - h;
@@ -676,19 +678,24 @@ double ViableFeeds::JerkCap(double s) const {
 }
 
 double ViableFeeds::MinJerkCap(double s0, double s1) const {
-  double cap = limits_.tangential_jerk;
-  for (const Node& n : nodes_) {
-    if (n.s >= s0 && n.s <= s1) cap = std::min(cap, n.jerk_cap);
+  double cap = std::min(limits_.tangential_jerk, JerkCap(s0));
+  for (auto it = FirstAtOrAfter(s0); it != nodes_.end() && it->s <= s1; ++it) {
+    cap = std::min(cap, it->jerk_cap);
   }
-  return std::min(cap, JerkCap(s0));
+  return cap;
 }
 
 double ViableFeeds::MinAccelerationCap(double s0, double s1) const {
   double cap = limits_.tangential_acceleration;
-  for (const Node& n : nodes_) {
-    if (n.s >= s0 && n.s <= s1) cap = std::min(cap, n.acceleration_cap);
+  for (auto it = FirstAtOrAfter(s0); it != nodes_.end() && it->s <= s1; ++it) {
+    cap = std::min(cap, it->acceleration_cap);
   }
   return cap;
+}
+
+std::deque<ViableFeeds::Node>::const_iterator ViableFeeds::FirstAtOrAfter(double s) const {
+  return std::lower_bound(nodes_.begin(), nodes_.end(), s,
+                          [](const Node& n, double x) { return n.s < x; });
 }
 
 bool ViableFeeds::Admissible(double s, double v, double a) const {

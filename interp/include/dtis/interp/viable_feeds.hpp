@@ -138,6 +138,8 @@ class ViableFeeds {
   // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a).
   double Bisect(const Node& n, const Node& next, double a) const;
 
+  // The first node at or after arc length s.
+  std::deque<Node>::const_iterator FirstAtOrAfter(double s) const;
   // The node at s; `side` < 0: derivatives of the piece before s, > 0: after it, 0: central.
   Node Sample(double s, const PathState& hint, const AxisVector& q_hint, int side) const;
   // The grid spacing at n, the grid ending at `end` (rest).
