@@ -105,8 +105,20 @@ SURF
 expect bad-face "face 3 does not exist; the file has faces 1 to 1" -- "$dtis" run "$work/surf.toml" -o "$work/out.csv"
 sed 's/^face = 3/face = 4294967297/' "$work/surf.toml" > "$work/bigface.toml"
 expect face-2to32 "bigface.toml:5: key 'surface.face': expected a face index from 1 to 2147483647, got 4294967297" -- "$dtis" run "$work/bigface.toml" -o "$work/out.csv"
-sed 's/^face = 3/face = 1/' "$work/surf.toml" > "$work/undercut.toml"
+sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 2\non_gouge = "stop"/' "$work/surf.toml" > "$work/undercut.toml"
 expect undercut "undercut" -- "$dtis" run "$work/undercut.toml" -o "$work/out.csv"
+sed 's/"stop"/"maybe"/' "$work/undercut.toml" > "$work/badgouge.toml"
+expect on-gouge-value "key 'strategy.on_gouge'" -- "$dtis" run "$work/badgouge.toml" -o "$work/out.csv"
+# Skipping (the default), the same job runs and its summary lists what was left out.
+checks=$((checks + 1))
+sed '/^on_gouge/d' "$work/undercut.toml" > "$work/skip.toml"
+if err=$("$dtis" run "$work/skip.toml" -o "$work/skip.csv" 2>&1) &&
+  [[ "$err" == *"unreachable      "*"stretches"*"undercut: "* ]]; then
+  echo "ok on-gouge-skip"
+else
+  echo "FAIL on-gouge-skip: $err"; failures=$((failures + 1))
+fi
+rm -f "$work/skip.csv"
 sed "s/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [500, 510]/" "$work/surf.toml" > "$work/miss.toml"
 expect misses "misses the face" -- "$dtis" run "$work/miss.toml" -o "$work/out.csv"
 

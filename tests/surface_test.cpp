@@ -586,6 +586,7 @@ std::string BuildError(const std::string& file, int face_index, const Tool& tool
 TEST(SurfaceErrors, NameTheFaceTheLineAndWhere) {
   StrategySpec spec;
   spec.stepover_mm = 5.0;
+  spec.on_gouge = StrategySpec::OnGouge::kStop;
   const std::string gouge =
       BuildError("samples/parts/occt_bug29478_single_rational_face_worknc.stp", 1, Ball(3.0), spec);
   EXPECT_NE(gouge.find("gouges"), std::string::npos) << gouge;
@@ -832,8 +833,38 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
   for (const Tool& tool :
        {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 4.0, 1.0)}) {
     SCOPED_TRACE(tool.Describe());
-    test::ExpectError([&] { strategies::BuildPasses(surface, tool, Orientation{}, spec); },
+    StrategySpec stop = spec;
+    stop.on_gouge = StrategySpec::OnGouge::kStop;
+    test::ExpectError([&] { strategies::BuildPasses(surface, tool, Orientation{}, stop); },
                       {"the tool gouges", "mm into it at (", "line 1", "arc length"});
+    // Skipping it instead: each line is finished from both ends up to where the tool stands
+    // centred over the valley's floor (by symmetry the bottom then touches both flanks, and one
+    // step further its far side goes into the face), and the two stretches left out are reported.
+    const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+    ASSERT_EQ(passes.passes.size(), 12u);
+    ASSERT_EQ(passes.unreachable.size(), 12u);
+    for (const auto& pass : passes.passes) {
+      EXPECT_NEAR(std::abs(pass->StartPose().tip.y()), 15.0 - tool.radius, 0.5);
+      EXPECT_NEAR(pass->EndPose().tip.y(), 0.0, 1e-4);
+      const PathSample end = pass->At(pass->Start(), *pass->Length());
+      EXPECT_NEAR(end.pose.tip.y(), 0.0, 1e-4);
+    }
+    for (const auto& u : passes.unreachable) {
+      EXPECT_FALSE(u.resumes);
+      EXPECT_NE(u.why.find("the tool gouges"), std::string::npos) << u.why;
+      // The contact where the tool is centred: y + r n_y(y) + R = 0 on the near flank.
+      double y = -tool.radius;
+      for (int it = 0; it < 50; ++it) {
+        const double n_y = (-y / 20.0) / std::sqrt(1.0 + y * y / 400.0);
+        y = -tool.TorusRadius() - tool.corner_radius * n_y;
+      }
+      EXPECT_NEAR(std::abs(u.from.y()), -y, 1e-4);
+      EXPECT_NEAR(u.from.z(), y * y / 40.0, 1e-4);
+    }
+    ExpectToolAboveFace(Valley(), tool, passes, 0.05, 0.3);
+    const std::string text = passes.UnreachableText(2);
+    EXPECT_NE(text.find("12 stretches"), std::string::npos) << text;
+    EXPECT_NE(text.find("and 10 more"), std::string::npos) << text;
   }
   // A ball narrower than the valley's radius finishes it, and no point of it is under the face.
   const Tool ball = Ball(3.0);
@@ -966,6 +997,7 @@ TEST(SurfaceErrors, AFlatBottomOverASaddleIsRefusedWithWhere) {
   StrategySpec spec;
   spec.range = std::array<double, 2>{0.0, 0.0};
   spec.stepover_mm = 1.0;
+  spec.on_gouge = StrategySpec::OnGouge::kStop;
   try {
     strategies::BuildPasses(surface, Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Orientation{}, spec);
     ADD_FAILURE() << "a flat bottom over a saddle must be refused";
@@ -1075,8 +1107,15 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
         spec.along_u = false;
         if (kind == StrategySpec::Kind::kLeadingLine) spec.guide = guide;
         if (tool.kind != Tool::Kind::kBallEnd) {
-          test::ExpectError([&] { strategies::BuildPasses(surface, tool, o, spec); },
+          StrategySpec stop = spec;
+          stop.on_gouge = StrategySpec::OnGouge::kStop;
+          test::ExpectError([&] { strategies::BuildPasses(surface, tool, o, stop); },
                             {"the tool gouges", "(u, v)"});
+          // Skipping the valleys, the rest is finished without going into the face.
+          spec.max_passes = 3;
+          const auto passes = strategies::BuildPasses(surface, tool, o, spec);
+          EXPECT_FALSE(passes.unreachable.empty());
+          ExpectToolAboveFace(face, tool, passes, 0.1, 0.8);
           continue;
         }
         spec.max_passes = 3;

@@ -237,6 +237,9 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
     s.max_passes = static_cast<int>(*m);
   }
   if (auto t = st.OptionalPositiveNumber("newton_tol_mm")) s.newton.tolerance_mm = *t;
+  s.on_gouge = st.OptionalChoice("on_gouge", {"skip", "stop"}).value_or("skip") == "skip"
+                   ? Spec::OnGouge::kSkip
+                   : Spec::OnGouge::kStop;
   st.RejectUnknown();
   try {
     if (s.scallop_mm > 0.0)
@@ -645,6 +648,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   }
   r->passes = static_cast<int>(passes.size());
   r->stepover_mm = setup.passes.stepover_mm;
+  r->unreachable = setup.passes.UnreachableText(8);
   CheckMotionBound(job, r->path_length_mm);
   const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
   r->links = pp.links;
@@ -789,6 +793,7 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
         "passes           {} (stepover {:.6g} mm), {} link moves, {:.6f} s on the "
         "passes\n",
         r.passes, r.stepover_mm, r.links, r.pass_motion_s);
+    if (!r.unreachable.empty()) out += "unreachable      " + r.unreachable;
     out += fmt::format("newton           {:.3f} iterations per evaluation ({} evaluations)\n",
                        r.vpop.evaluations ? static_cast<double>(r.vpop.path_iterations) /
                                                 static_cast<double>(r.vpop.evaluations)

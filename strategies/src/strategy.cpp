@@ -15,6 +15,19 @@ namespace {
 
 constexpr double kProbeMm = 1e-3;  // step used to tell an entry from an exit
 
+// Passes shorter than this (mm) between two unreachable stretches, or before or after one, are
+// left out with them.
+constexpr double kMinPieceMm = 1e-3;
+
+// A stretch of a crossing where the tool does not fit (OnGouge::kSkip), by arc length on its trace.
+struct Gap {
+  double s_begin = 0.0, s_end = 0.0;
+  ContactPoint before;  // the last point where the tool fits
+  ContactPoint after;   // the first where it fits again (resumes), else where the trace stopped
+  bool resumes = false;
+  std::string why;
+};
+
 struct Candidate {
   int line = 0;
   PassConstraint constraint;
@@ -22,6 +35,7 @@ struct Candidate {
   double length = 0.0;
   double order = 0.0;  // position of the start along the travel, to sort passes of one line
   std::vector<Bridge> bridges;
+  std::vector<Gap> gaps;  // sorted by arc length: the crossing's passes are the pieces between
 };
 
 class Builder {
@@ -73,11 +87,43 @@ class Builder {
       return a.line != b.line ? a.line < b.line : a.order < b.order;
     });
     for (const Candidate& c : found) {
-      if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) break;
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
-      list.passes.push_back(
-          std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, c.start, c.end,
-                                        c.length, spec_.newton, c.bridges));
+      // The pieces of the crossing between its unreachable stretches, each a pass.
+      const auto piece = [&](const ContactPoint& from, double s0, const ContactPoint& to,
+                             double s1) {
+        if (s1 - s0 < kMinPieceMm) return;
+        if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) {
+          return;
+        }
+        std::vector<Bridge> bridges;
+        for (Bridge b : c.bridges) {
+          if (b.s_start < s0 || b.s_exit > s1) continue;
+          for (double* x : {&b.s_start, &b.s_in, &b.s_out, &b.s_exit}) *x -= s0;
+          bridges.push_back(b);
+        }
+        list.passes.push_back(
+            std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, from, to,
+                                          s1 - s0, spec_.newton, std::move(bridges)));
+      };
+      ContactPoint from = c.start;
+      double s0 = 0.0;
+      bool open = true;
+      for (const Gap& g : c.gaps) {
+        piece(from, s0, g.before, g.s_begin);
+        list.unreachable.push_back(
+            {c.line + 1, g.before.p, g.after.p, g.s_end - g.s_begin, g.resumes, g.why});
+        if (!g.resumes) {
+          open = false;
+          break;
+        }
+        from = g.after;
+        s0 = g.s_end;
+      }
+      if (open) piece(from, s0, c.end, c.length);
+    }
+    if (list.passes.empty()) {
+      throw Error("{}: the tool fits nowhere along the {} strategy's passes: {}", face_.Where(),
+                  StrategySpec::KindName(spec_.kind), list.unreachable.front().why);
     }
     return list;
   }
@@ -328,12 +374,64 @@ class Builder {
     return e.LastInside(inside, sign, chord_out, spec_.newton);
   }
 
+  // Traces a crossing from its start to where it leaves the face: its length, its bridges, and
+  // where the tool does not fit (refused, or with OnGouge::kSkip recorded as gaps: the contact
+  // point is traced on through them, and each end found to 1/4096 of a step).
   void Trace(const PassEvaluator& e, Candidate* cand) const {
+    const bool skip = spec_.on_gouge == StrategySpec::OnGouge::kSkip;
     ContactPoint cur = cand->start, next;
     double s = 0.0;
     EvalStatus status = EvalStatus::kOk;
     int its = 0;
-    CheckGouge(*cand, cur, s);
+    std::optional<Gap> gap;  // the one the trace is in
+    // Whether the tool fits at p (arc length at); refuses the job unless gaps are skipped.
+    std::string why;
+    const auto fits = [&](const ContactPoint& p, double at) {
+      const std::optional<std::string> w = GougeAt(p);
+      if (!w) return true;
+      if (!skip) Fail(cand->line, cand->constraint, at, p.uv, *w);
+      why = *w;
+      return false;
+    };
+    // The point between `from` (where fitting is `was`) and the step h ahead where it changes.
+    const auto change = [&](const ContactPoint& from, double h, bool was, ContactPoint* at,
+                            double* x) {
+      double lo = 0.0, hi = h;
+      ContactPoint p_lo = from, p;
+      EvalStatus st;
+      int n = 0;
+      for (int k = 0; k < 12; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        const bool ok = e.Step(from, mid, spec_.newton, &p, &st, &n);
+        if (ok && (GougeAt(p).has_value() != was)) {
+          lo = mid, p_lo = p;
+        } else {
+          hi = mid;
+        }
+      }
+      // Fitting points are kept on the fitting side.
+      if (!was) {
+        *at = p_lo, *x = lo;
+      } else if (e.Step(from, hi, spec_.newton, &p, &st, &n)) {
+        *at = p, *x = hi;
+      } else {
+        *at = p_lo, *x = lo;
+      }
+    };
+    const auto open_gap = [&](const ContactPoint& p, double at) {
+      gap.emplace();
+      gap->before = p;
+      gap->s_begin = at;
+      gap->why = why;
+    };
+    const auto close_gap = [&](const ContactPoint& p, double at, bool resumes) {
+      gap->after = p;
+      gap->s_end = at;
+      gap->resumes = resumes;
+      cand->gaps.push_back(*gap);
+      gap.reset();
+    };
+    if (!fits(cur, s)) open_gap(cur, s);
     const double full = spec_.newton.max_step_mm;
     double h = full;
     for (long k = 0;; ++k) {
@@ -353,29 +451,49 @@ class Builder {
         const bool top = OverTop(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
           // Over a top the bottom's disc rides the chord: checked along it like any step.
-          for (int i = 1; i < 8 && top; ++i) {
+          for (int i = 1; i < 8 && top && !gap; ++i) {
             ContactPoint on = cur;
             on.p = piece.top;
             on.uv = piece.top_uv;
             on.n = cur.axis;
             on.tip = piece.Tip(piece.s_in + (piece.s_out - piece.s_in) * i / 8.0);
-            CheckGouge(*cand, on, piece.s_in);
+            if (const auto w = GougeAt(on))
+              Fail(cand->line, cand->constraint, piece.s_in, on.uv, *w);
           }
-          cand->bridges.push_back(piece);
+          if (!gap) cand->bridges.push_back(piece);
           cur = piece.exit;
           s = piece.s_exit;
-          CheckGouge(*cand, cur, s);
+          const bool ok = fits(cur, s);
+          if (gap && ok) close_gap(cur, s, true);
+          if (!gap && !ok) open_gap(cur, s);
           h = full / 1024.0;  // where the halving left it
           continue;
         }
-        Fail(cand->line, cand->constraint, s, cur.uv,
-             status == EvalStatus::kOk
-                 ? fmt::format("the Newton solve did not converge to {} mm (even in steps of {} "
-                               "mm): the strategy's line is singular here (surface radius of "
-                               "curvature {:.3g} mm, normal . tool axis {:.3g})",
-                               spec_.newton.tolerance_mm, h, std::abs(1.0 / cur.concave_curvature),
-                               cur.n.dot(cur.axis))
-                 : EvalStatusText(status));
+        const std::string stuck =
+            status == EvalStatus::kOk
+                ? fmt::format(
+                      "the Newton solve did not converge to {} mm (even in steps of {} "
+                      "mm): the strategy's line is singular here (surface radius of "
+                      "curvature {:.3g} mm, normal . tool axis {:.3g})",
+                      spec_.newton.tolerance_mm, h, std::abs(1.0 / cur.concave_curvature),
+                      cur.n.dot(cur.axis))
+                : EvalStatusText(status);
+        if (skip && (gap || status == EvalStatus::kOk || flat)) {
+          // The contact point cannot be traced on: inside a stretch where the tool does not fit
+          // (a flat bottom over the floor of a valley), or where a flat bottom would rest on the
+          // face away from the strategy's contact point (a top on a uv or plane_cc line). The
+          // crossing ends here; what lies beyond is traced from its other end (plane strategies)
+          // or left out, and said so.
+          if (!gap) {
+            why = stuck;
+            open_gap(cur, s);
+          }
+          close_gap(cur, s, false);
+          cand->end = cur;
+          cand->length = s;
+          return;
+        }
+        Fail(cand->line, cand->constraint, s, cur.uv, stuck);
       }
       // A pass that skims the boundary may leave and re-enter between two steps: look at the
       // middle of the step (cubic Hermite in (u, v)) and, if it is off the face, solve there.
@@ -393,15 +511,39 @@ class Builder {
       }
       if (out_chord > 0.0) {
         const ContactPoint end = Bisect(e, cur, 1.0, out_chord);
-        s += ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
+        const double arc = ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
+        if (!gap && !fits(end, s + arc)) {
+          ContactPoint at;
+          double x;
+          change(cur, arc, true, &at, &x);
+          open_gap(at, s + x);
+        }
+        s += arc;
+        if (gap) close_gap(end, s, false);
         cand->end = end;
         cand->length = s;
-        CheckGouge(*cand, end, s);
         return;
+      }
+      const bool ok = fits(next, s + h);
+      if (gap && ok) {
+        // The tool fits again: the next piece starts where it does, traced on from there.
+        ContactPoint at;
+        double x;
+        change(cur, h, false, &at, &x);
+        close_gap(at, s + x, true);
+        cur = at;
+        s += x;
+        h = full / 1024.0;
+        continue;
+      }
+      if (!gap && !ok) {
+        ContactPoint at;
+        double x;
+        change(cur, h, true, &at, &x);
+        open_gap(at, s + x);
       }
       s += h;
       cur = next;
-      CheckGouge(*cand, cur, s);
       h = std::min(full, 2.0 * h);
     }
   }
@@ -536,33 +678,35 @@ class Builder {
     return true;
   }
 
-  void CheckGouge(const Candidate& cand, const ContactPoint& p, double s) const {
+  // Why the tool does not fit touching the face at p (it would touch with its upper side, or go
+  // into the face), or nothing.
+  std::optional<std::string> GougeAt(const ContactPoint& p) const {
     // Contact above the ball's equator by less than 0.006 deg overlaps the shank by < r 1e-8.
     if (p.n.dot(p.axis) < -1e-4) {
-      Fail(cand.line, cand.constraint, s, p.uv,
-           fmt::format("undercut: the surface normal points {:.3g} deg away from the tool axis, so "
-                       "the tool would touch with its upper side (use a 5-axis orientation or "
-                       "another side)",
-                       std::acos(std::clamp(p.n.dot(p.axis), -1.0, 1.0)) * 180.0 / M_PI));
+      return fmt::format(
+          "undercut: the surface normal points {:.3g} deg away from the tool axis, so the tool "
+          "would touch with its upper side (use a 5-axis orientation or another side)",
+          std::acos(std::clamp(p.n.dot(p.axis), -1.0, 1.0)) * 180.0 / M_PI);
     }
     if (p.concave_curvature > max_curvature_) {
-      Fail(cand.line, cand.constraint, s, p.uv,
-           fmt::format("the tool gouges: the surface's concave radius of curvature here is {:.6g} "
-                       "mm, smaller than the tool's {} mm ({})",
-                       1.0 / p.concave_curvature, 1.0 / max_curvature_, tool_.Describe()));
+      return fmt::format(
+          "the tool gouges: the surface's concave radius of curvature here is {:.6g} mm, smaller "
+          "than the tool's {} mm ({})",
+          1.0 / p.concave_curvature, 1.0 / max_curvature_, tool_.Describe());
     }
     const Depth d = DeepestToolPoint(p);
     if (d.depth > kGougeMm) {
-      Fail(cand.line, cand.constraint, s, p.uv,
-           fmt::format("the tool gouges: touching the face here, it goes {:.3g} mm into it at "
-                       "({:.6g}, {:.6g}, {:.6g}), (u, v) = ({:.9g}, {:.9g}), {:.3g} mm from the "
-                       "contact point (a concave region narrower than the {}{})",
-                       d.depth, d.at.x(), d.at.y(), d.at.z(), d.uv.x(), d.uv.y(),
-                       (d.at - p.p).norm(), tool_.Describe(),
-                       tool_.kind == geometry::Tool::Kind::kBallEnd
-                           ? ": use a smaller ball"
-                           : ": a flat bottom cannot follow a valley; use a ball end"));
+      return fmt::format(
+          "the tool gouges: touching the face here, it goes {:.3g} mm into it at ({:.6g}, {:.6g}, "
+          "{:.6g}), (u, v) = ({:.9g}, {:.9g}), {:.3g} mm from the contact point (a concave region "
+          "narrower than the {}{})",
+          d.depth, d.at.x(), d.at.y(), d.at.z(), d.uv.x(), d.uv.y(), (d.at - p.p).norm(),
+          tool_.Describe(),
+          tool_.kind == geometry::Tool::Kind::kBallEnd
+              ? ": use a smaller ball"
+              : ": a flat bottom cannot follow a valley; use a ball end");
     }
+    return std::nullopt;
   }
 
   // A point of the tool further into the face than this is a gouge (the Newton tolerance).
@@ -574,14 +718,18 @@ class Builder {
     Eigen::Vector2d uv = Eigen::Vector2d::Zero();
   };
 
-  // The deepest of sampled points of the tool's lower side (its flat bottom, and its corner from
-  // the bottom to the widest circle) when it touches the face at p, among those more than kGougeMm
-  // deep (else depth -inf): each point is dropped along the tool axis onto the face (Newton in
-  // (u, v) from the contact point), and its depth is how far it lies under the face's tangent
-  // plane there. Points with no face below them (off the face's domain, or no convergence on a
-  // wall along the axis) are left out. The contact's own curvature is CheckGouge's first test;
-  // this one finds the face rising into the tool further away, where no local test can (a flat
-  // bottom across a valley, a ball over a bump beside the contact).
+  // The deepest point of the tool's lower side (its flat bottom, and its corner from the bottom
+  // to the widest circle) when it touches the face at p, if more than kGougeMm deep (else depth
+  // -inf). Points of the side are dropped along the tool axis onto the face (Newton in (u, v) from
+  // the contact point), and a point's depth is how far it lies under the face's tangent plane
+  // there. The side is sampled on a grid (16 directions around the axis, 2 rings of the bottom, 4
+  // angles of the corner), and around every sample that comes closer to the face than its
+  // neighbours (away from the contact itself), the closest point is searched for between them: a
+  // corner touching between two samples of a 1 mm corner could otherwise go 0.01 mm into the face
+  // unseen. Points with no face below them (off the face's domain, or no convergence on a wall
+  // along the axis) are left out. The contact's own curvature is GougeAt's first test; this one
+  // finds the face rising into the tool further away, where no local test can (a flat bottom
+  // across a valley, a ball over a bump beside the contact).
   Depth DeepestToolPoint(const ContactPoint& p) const {
     const Eigen::Vector3d& a = p.axis;
     Eigen::Vector3d e1 = p.n - p.n.dot(a) * a;
@@ -591,44 +739,94 @@ class Builder {
     constexpr int kAround = 16, kRings = 2, kCorner = 4;
     Depth deepest;
     geometry::SurfaceDerivatives d;
-    const auto drop = [&](const Eigen::Vector3d& x) {
+    // The depth of tool point x (-inf: no face under it).
+    const auto drop = [&](const Eigen::Vector3d& x) -> double {
       // (S(u, v) - x) . e1 = (S(u, v) - x) . e2 = 0, from the contact's first-order guess.
       Eigen::Matrix2d j;
       j << e1.dot(p.dp.col(0)), e1.dot(p.dp.col(1)), e2.dot(p.dp.col(0)), e2.dot(p.dp.col(1));
-      if (!(std::abs(j.determinant()) > 1e-12)) return;
+      if (!(std::abs(j.determinant()) > 1e-12)) return -INFINITY;
       Eigen::Vector2d uv =
           p.uv - j.inverse() * Eigen::Vector2d((p.p - x).dot(e1), (p.p - x).dot(e2));
       for (int it = 0; it < 12; ++it) {
-        if (!face_.InBox(uv.x(), uv.y())) return;
+        if (!face_.InBox(uv.x(), uv.y())) return -INFINITY;
         face_.D2(uv.x(), uv.y(), &d);
         const Eigen::Vector3d off = d.p - x;
         const Eigen::Vector2d f(off.dot(e1), off.dot(e2));
         if (f.norm() <= 1e-10) {
           // How far the point lies under the face's tangent plane at the foot (on a wall nearly
           // along the axis, the depth along the axis would magnify a rounding error).
+          // A point above the face along the axis counts as no deeper than touching it.
           const Eigen::Vector3d normal = d.su.cross(d.sv);
-          const double depth = off.dot(a) > 0.0
-                                   ? off.dot(normal) * (static_cast<double>(side_) / normal.norm())
-                                   : -1.0;
+          const double under = off.dot(normal) * (static_cast<double>(side_) / normal.norm());
+          const double depth = off.dot(a) > 0.0 ? under : std::min(under, 0.0);
           // Only a gouge asks whether the face is there (near a trimming loop the classifier).
           if (depth > std::max(deepest.depth, kGougeMm) && face_.Inside(uv.x(), uv.y())) {
             deepest = {depth, x, uv};
           }
-          return;
+          return depth;
         }
         j << e1.dot(d.su), e1.dot(d.sv), e2.dot(d.su), e2.dot(d.sv);
-        if (!(std::abs(j.determinant()) > 1e-12)) return;
+        if (!(std::abs(j.determinant()) > 1e-12)) return -INFINITY;
         uv -= j.inverse() * f;
       }
+      return -INFINITY;
     };
-    if (big_r > 0.0) drop(p.tip);
-    for (int k = 0; k < kAround; ++k) {
-      const double phi = 2.0 * M_PI * k / kAround;
+    // The side's point at angle phi around the axis and position t along its outline: t in
+    // [0, kRings] on the bottom (radius R t / kRings), then the corner (angle 90 deg (t - kRings)
+    // / kCorner from the bottom).
+    const bool bottom = big_r > 0.0, corner = r > 0.0;
+    const double t0 = bottom ? 1.0 : kRings, t1 = corner ? kRings + kCorner : kRings;
+    const auto point = [&](double phi, double t) -> Eigen::Vector3d {
       const Eigen::Vector3d e = std::cos(phi) * e1 + std::sin(phi) * e2;
-      for (int i = 1; i <= kRings && big_r > 0.0; ++i) drop(p.tip + e * (big_r * i / kRings));
-      for (int i = 1; i <= kCorner && r > 0.0; ++i) {
-        const double psi = 0.5 * M_PI * i / kCorner;
-        drop(p.tip + r * a + big_r * e + r * (std::sin(psi) * e - std::cos(psi) * a));
+      if (t <= kRings) return p.tip + e * (big_r * t / kRings);
+      const double psi = 0.5 * M_PI * (t - kRings) / kCorner;
+      return p.tip + r * a + big_r * e + r * (std::sin(psi) * e - std::cos(psi) * a);
+    };
+    if (bottom) drop(p.tip);
+    const int n_t = static_cast<int>(t1 - t0) + 1;
+    std::vector<double> grid(static_cast<std::size_t>(kAround * n_t));
+    const auto at = [&](int k, int i) -> double& {
+      return grid[static_cast<std::size_t>(((k + kAround) % kAround) * n_t + i)];
+    };
+    const double dphi = 2.0 * M_PI / kAround;
+    for (int k = 0; k < kAround; ++k) {
+      for (int i = 0; i < n_t; ++i) at(k, i) = drop(point(k * dphi, t0 + i));
+    }
+    // Refine around the local maxima of the depth that are not the contact: coordinate-wise
+    // golden sections over the cell on either side, twice.
+    const double near = 0.05 * (big_r + r) + 1e-3;
+    const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+    for (int k = 0; k < kAround; ++k) {
+      for (int i = 0; i < n_t; ++i) {
+        const double v = at(k, i);
+        if (!std::isfinite(v) || v < -0.05 * (big_r + r)) continue;
+        bool top = true;
+        for (int dk = -1; dk <= 1 && top; ++dk) {
+          for (int di = -1; di <= 1; ++di) {
+            if ((dk || di) && i + di >= 0 && i + di < n_t && at(k + dk, i + di) > v) top = false;
+          }
+        }
+        if (!top || (point(k * dphi, t0 + i) - p.p).norm() < near) continue;
+        double phi = k * dphi, t = t0 + i;
+        for (int round = 0; round < 2; ++round) {
+          for (int axis = 0; axis < 2; ++axis) {
+            double lo = axis == 0 ? phi - dphi : std::max(t0, t - 1.0);
+            double hi = axis == 0 ? phi + dphi : std::min(t1, t + 1.0);
+            const auto f = [&](double x) {
+              return axis == 0 ? drop(point(x, t)) : drop(point(phi, x));
+            };
+            double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
+            double f1 = f(x1), f2 = f(x2);
+            for (int it = 0; it < 8; ++it) {
+              if (f1 >= f2) {
+                hi = x2, x2 = x1, f2 = f1, x1 = hi - gr * (hi - lo), f1 = f(x1);
+              } else {
+                lo = x1, x1 = x2, f1 = f2, x2 = lo + gr * (hi - lo), f2 = f(x2);
+              }
+            }
+            (axis == 0 ? phi : t) = f1 >= f2 ? x1 : x2;
+          }
+        }
       }
     }
     return deepest;
@@ -659,6 +857,28 @@ const char* StrategySpec::KindName(Kind kind) {
       return "leading_line";
   }
   return "?";
+}
+
+std::string PassList::UnreachableText(std::size_t most) const {
+  if (unreachable.empty()) return "";
+  double total = 0.0;
+  for (const Unreachable& u : unreachable) total += u.length_mm;
+  std::string out = fmt::format(
+      "{} stretch{} of the strategy's lines left out where the tool does not fit: {:.6g} mm of "
+      "tool path, about {:.3g} mm^2 at the stepover\n",
+      unreachable.size(), unreachable.size() == 1 ? "" : "es", total, total * stepover_mm);
+  for (std::size_t k = 0; k < unreachable.size() && k < most; ++k) {
+    const Unreachable& u = unreachable[k];
+    out += fmt::format(
+        "  line {}, {:.6g} mm from ({:.6g}, {:.6g}, {:.6g}) to ({:.6g}, {:.6g}, "
+        "{:.6g}){}: {}\n",
+        u.line, u.length_mm, u.from.x(), u.from.y(), u.from.z(), u.to.x(), u.to.y(), u.to.z(),
+        u.resumes ? "" : " (the line is not traced past it)", u.why);
+  }
+  if (unreachable.size() > most) {
+    out += fmt::format("  and {} more\n", unreachable.size() - most);
+  }
+  return out;
 }
 
 std::string PassList::Summary() const {

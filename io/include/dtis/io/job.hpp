@@ -112,6 +112,8 @@ struct RunResult {
   int links = 0;
   double stepover_mm = 0.0;
   double pass_motion_s = 0.0;  // time spent on the passes (links excluded)
+  // What the passes leave out where the tool does not fit (PassList::UnreachableText), or "".
+  std::string unreachable;
 };
 
 // How far a run has come, for a progress display.

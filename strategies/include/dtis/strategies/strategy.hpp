@@ -26,6 +26,10 @@ struct StrategySpec {
   enum class Kind { kPlaneCl, kPlaneCc, kUv, kLeadingLine };
   enum class PathMode { kForward, kZigzag };
   enum class Side { kAuto, kFace, kReversed };
+  // Where the tool would go into the face (a concave region tighter than the tool, a flat bottom
+  // across a valley) or touch it with its upper side: kSkip cuts the pass there and goes on where
+  // the tool fits again (PassList::unreachable says what was left); kStop refuses the job.
+  enum class OnGouge { kSkip, kStop };
 
   Kind kind = Kind::kPlaneCl;
   // Plane strategies: the planes' normal, and the direction of travel (the feed direction is the
@@ -47,20 +51,36 @@ struct StrategySpec {
   std::optional<std::array<double, 2>> range;
   int max_passes = 0;  // 0: all
   Side side = Side::kAuto;
+  OnGouge on_gouge = OnGouge::kSkip;
   NewtonOptions newton;
 
   static const char* KindName(Kind kind);
 };
 
+// A stretch of a strategy line the tool cannot finish without going into the face, left out of
+// the passes (StrategySpec::OnGouge::kSkip).
+struct Unreachable {
+  int line = 0;                                    // the strategy line, 1-based
+  Eigen::Vector3d from = Eigen::Vector3d::Zero();  // contact point where the tool last fits
+  Eigen::Vector3d to = Eigen::Vector3d::Zero();    // where it fits again, or where the trace stops
+  double length_mm = 0.0;                          // of tool tip path left out
+  bool resumes = false;                            // false: the line is not finished past it
+  std::string why;                                 // the first reason met on it
+};
+
 struct PassList {
   std::vector<std::unique_ptr<SurfacePass>> passes;
+  std::vector<Unreachable> unreachable;
   double stepover_mm = 0.0;  // used between lines (mm; for uv the nominal distance)
   int side = 1;              // +1: the side of S_u x S_v was machined
   std::string Summary() const;
+  // The stretches left out, a line each (at most `most`, then how many more), or "".
+  std::string UnreachableText(std::size_t most) const;
 };
 
 // Throws dtis::Error naming the face, line, arc length and (u, v) on a degenerate normal, a
-// gouge, an undefined feed direction, a range that misses the face, a pass that never ends.
+// gouge or undercut (OnGouge::kStop), an undefined feed direction, a range that misses the face,
+// a pass that never ends.
 PassList BuildPasses(const geometry::FaceSurface& face, const geometry::Tool& tool,
                      const Orientation& orientation, const StrategySpec& spec);
 
