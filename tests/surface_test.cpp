@@ -807,14 +807,15 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
 // 2 sqrt(R^2 - c^2) long (a closed form independent of the strategies' code).
 // A valley z = y^2 / (2 rho), rho = 20 mm, over x, y in [-15, 15]: a Bezier surface, quadratic
 // across the valley, linear along it.
-TopoDS_Face Valley() {
+// With `rho` and `half`: z = y^2 / (2 rho) over y in [-half, half].
+TopoDS_Face Valley(double rho = 20.0, double half = 15.0) {
   TColgp_Array2OfPnt poles(1, 2, 1, 3);
-  const double edge = 15.0 * 15.0 / 40.0;
+  const double edge = half * half / (2.0 * rho);
   for (int i = 1; i <= 2; ++i) {
     const double x = i == 1 ? -15.0 : 15.0;
-    poles(i, 1) = gp_Pnt(x, -15.0, edge);
+    poles(i, 1) = gp_Pnt(x, -half, edge);
     poles(i, 2) = gp_Pnt(x, 0.0, -edge);
-    poles(i, 3) = gp_Pnt(x, 15.0, edge);
+    poles(i, 3) = gp_Pnt(x, half, edge);
   }
   return BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
       .Face();
@@ -837,20 +838,24 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
     stop.on_gouge = StrategySpec::OnGouge::kStop;
     test::ExpectError([&] { strategies::BuildPasses(surface, tool, Orientation{}, stop); },
                       {"the tool gouges", "mm into it at (", "line 1", "arc length"});
-    // Skipping it instead: each line is finished from both ends up to where the tool stands
-    // centred over the valley's floor (by symmetry the bottom then touches both flanks, and one
-    // step further its far side goes into the face), and the two stretches left out are reported.
+    // Skipping it instead: each line is finished up to where the tool stands centred over the
+    // valley's floor (by symmetry the bottom then touches both flanks, and one step further its
+    // far side goes into the face), and again from where it stands centred touching the other
+    // flank; the stretch between is reported.
     const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
     ASSERT_EQ(passes.passes.size(), 12u);
-    ASSERT_EQ(passes.unreachable.size(), 12u);
-    for (const auto& pass : passes.passes) {
-      EXPECT_NEAR(std::abs(pass->StartPose().tip.y()), 15.0 - tool.radius, 0.5);
-      EXPECT_NEAR(pass->EndPose().tip.y(), 0.0, 1e-4);
+    ASSERT_EQ(passes.unreachable.size(), 6u);
+    for (std::size_t k = 0; k < passes.passes.size(); ++k) {
+      const auto& pass = passes.passes[k];
+      EXPECT_NEAR(std::abs((k % 2 == 0 ? pass->StartPose() : pass->EndPose()).tip.y()),
+                  15.0 - tool.radius, 0.5);
+      EXPECT_NEAR((k % 2 == 0 ? pass->EndPose() : pass->StartPose()).tip.y(), 0.0, 1e-4);
       const PathSample end = pass->At(pass->Start(), *pass->Length());
-      EXPECT_NEAR(end.pose.tip.y(), 0.0, 1e-4);
+      EXPECT_NEAR(end.pose.tip.y(), pass->EndPose().tip.y(), 1e-6);
     }
     for (const auto& u : passes.unreachable) {
-      EXPECT_FALSE(u.resumes);
+      EXPECT_TRUE(u.resumes);
+      EXPECT_NEAR(u.to.y(), -u.from.y(), 1e-4);
       EXPECT_NE(u.why.find("the tool gouges"), std::string::npos) << u.why;
       // The contact where the tool is centred: y + r n_y(y) + R = 0 on the near flank.
       double y = -tool.radius;
@@ -860,11 +865,15 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
       }
       EXPECT_NEAR(std::abs(u.from.y()), -y, 1e-4);
       EXPECT_NEAR(u.from.z(), y * y / 40.0, 1e-4);
+      // The length of the valley's section between the two, on the face.
+      const double a = -y;
+      EXPECT_NEAR(u.length_mm, a * std::sqrt(1.0 + a * a / 400.0) + 20.0 * std::asinh(a / 20.0),
+                  1e-3);
     }
     ExpectToolAboveFace(Valley(), tool, passes, 0.05, 0.3);
     const std::string text = passes.UnreachableText(2);
-    EXPECT_NE(text.find("12 stretches"), std::string::npos) << text;
-    EXPECT_NE(text.find("and 10 more"), std::string::npos) << text;
+    EXPECT_NE(text.find("6 stretches"), std::string::npos) << text;
+    EXPECT_NE(text.find("and 4 more"), std::string::npos) << text;
   }
   // A ball narrower than the valley's radius finishes it, and no point of it is under the face.
   const Tool ball = Ball(3.0);
@@ -872,6 +881,48 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
   ASSERT_GE(passes.passes.size(), 5u);
   const TopoDS_Face face = Valley();
   ExpectToolAboveFace(face, ball, passes, 0.05, 0.3);
+}
+
+TEST(SurfacePass, ABallInAValleyTighterThanItLeavesTheFloorOut) {
+  // A ball R3 in a valley of radius 2 mm (z = y^2 / 4): centred over the floor it touches both
+  // flanks, at y = -+sqrt(R^2 - rho^2) (there y + R n_y = 0, n_z = rho / R). Past that its far
+  // side would go into the face, until it stands centred again touching the other way: each line
+  // is a pass up to the first place and another from the second, the stretch between reported.
+  // (On plane_cl lines the ball's centre path folds back in between, where the valley's radius is
+  // the ball's: the contact point is marched through.)
+  const double rho = 2.0, big_r = 3.0;
+  const TopoDS_Face face = Valley(rho, 8.0);
+  const FaceSurface surface(face, "tight valley");
+  const Tool ball = Ball(big_r);
+  const double y = std::sqrt(big_r * big_r - rho * rho);
+  for (const auto kind : {StrategySpec::Kind::kUv, StrategySpec::Kind::kPlaneCl}) {
+    SCOPED_TRACE(StrategySpec::KindName(kind));
+    StrategySpec spec;
+    spec.kind = kind;
+    spec.along_u = false;
+    spec.plane_normal = Eigen::Vector3d::UnitX();
+    spec.direction = Eigen::Vector3d::UnitY();
+    spec.stepover_mm = 7.5;
+    const auto passes = strategies::BuildPasses(surface, ball, Orientation{}, spec);
+    ASSERT_EQ(passes.unreachable.size(), 4u);
+    ASSERT_EQ(passes.passes.size(), 8u);
+    for (const auto& u : passes.unreachable) {
+      EXPECT_TRUE(u.resumes);
+      EXPECT_NE(u.why.find("the tool gouges"), std::string::npos) << u.why;
+      EXPECT_NEAR(std::abs(u.from.y()), y, 1e-4);
+      EXPECT_NEAR(u.to.y(), -u.from.y(), 1e-4);
+      EXPECT_NEAR(u.from.z(), y * y / (2.0 * rho), 1e-4);
+      EXPECT_NEAR(u.length_mm, y * std::sqrt(1.0 + y * y / (rho * rho)) + rho * std::asinh(y / rho),
+                  1e-3);
+    }
+    for (std::size_t k = 0; k < passes.passes.size(); ++k) {
+      const auto& pass = passes.passes[k];
+      const Pose at = k % 2 == 0 ? pass->EndPose() : pass->StartPose();
+      EXPECT_NEAR(at.tip.y(), 0.0, 1e-4);
+      EXPECT_NEAR(at.tip.z(), y * y / (2.0 * rho) + rho - big_r, 1e-4);
+    }
+    ExpectToolAboveFace(face, ball, passes, 0.05, 0.3);
+  }
 }
 
 TEST(SurfacePass, AFlatBottomOnAPlaneAcrossTheAxisHasItsTipOnThePlane) {

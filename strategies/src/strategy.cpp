@@ -25,6 +25,7 @@ struct Gap {
   ContactPoint before;  // the last point where the tool fits
   ContactPoint after;   // the first where it fits again (resumes), else where the trace stopped
   bool resumes = false;
+  double contact_mm = 0.0;  // of the contact point's path on the face through it
   std::string why;
 };
 
@@ -111,7 +112,7 @@ class Builder {
       for (const Gap& g : c.gaps) {
         piece(from, s0, g.before, g.s_begin);
         list.unreachable.push_back(
-            {c.line + 1, g.before.p, g.after.p, g.s_end - g.s_begin, g.resumes, g.why});
+            {c.line + 1, g.before.p, g.after.p, g.contact_mm, g.resumes, g.why});
         if (!g.resumes) {
           open = false;
           break;
@@ -375,17 +376,20 @@ class Builder {
   }
 
   // Traces a crossing from its start to where it leaves the face: its length, its bridges, and
-  // where the tool does not fit (refused, or with OnGouge::kSkip recorded as gaps: the contact
-  // point is traced on through them, and each end found to 1/4096 of a step).
+  // where the tool does not fit (refused, or with OnGouge::kSkip recorded as gaps). Through a gap
+  // the contact point is marched along the strategy's line on the face (MarchContact: the tool's
+  // path may fold back there, where the tool's curvature exceeds the face's); each end of a gap is
+  // found to 1/4096 of a step.
   void Trace(const PassEvaluator& e, Candidate* cand) const {
     const bool skip = spec_.on_gouge == StrategySpec::OnGouge::kSkip;
     ContactPoint cur = cand->start, next;
     double s = 0.0;
     EvalStatus status = EvalStatus::kOk;
     int its = 0;
-    std::optional<Gap> gap;  // the one the trace is in
+    std::optional<Gap> gap;   // the one the trace is in
+    Eigen::Vector2d gap_dir;  // the march's direction in (u, v) inside it
+    std::string why;          // the last reason the tool did not fit
     // Whether the tool fits at p (arc length at); refuses the job unless gaps are skipped.
-    std::string why;
     const auto fits = [&](const ContactPoint& p, double at) {
       const std::optional<std::string> w = GougeAt(p);
       if (!w) return true;
@@ -393,36 +397,51 @@ class Builder {
       why = *w;
       return false;
     };
-    // The point between `from` (where fitting is `was`) and the step h ahead where it changes.
-    const auto change = [&](const ContactPoint& from, double h, bool was, ContactPoint* at,
-                            double* x) {
+    // Bisection on a step x in (0, h) from `from` (where the tool fits if `fits_from`) to a point
+    // where that changes: the points on either side of the change, to h / 4096, and their steps.
+    // `step` takes x.
+    struct Change {
+      ContactPoint fit, unfit;
+      double x_fit = 0.0, x_unfit = 0.0;
+    };
+    const auto change = [&](bool fits_from, double h, const ContactPoint& from, const auto& step) {
       double lo = 0.0, hi = h;
-      ContactPoint p_lo = from, p;
-      EvalStatus st;
-      int n = 0;
+      ContactPoint p_lo = from, p_hi, p;
+      bool have_hi = false;
       for (int k = 0; k < 12; ++k) {
         const double mid = 0.5 * (lo + hi);
-        const bool ok = e.Step(from, mid, spec_.newton, &p, &st, &n);
-        if (ok && (GougeAt(p).has_value() != was)) {
+        const bool ok = step(mid, &p);
+        if (ok && GougeAt(p).has_value() != fits_from) {
           lo = mid, p_lo = p;
         } else {
-          hi = mid;
+          hi = mid, p_hi = p, have_hi = ok;
         }
       }
-      // Fitting points are kept on the fitting side.
-      if (!was) {
-        *at = p_lo, *x = lo;
-      } else if (e.Step(from, hi, spec_.newton, &p, &st, &n)) {
-        *at = p, *x = hi;
-      } else {
-        *at = p_lo, *x = lo;
+      if (!have_hi) {
+        have_hi = step(hi, &p_hi);
+        if (!have_hi) p_hi = p_lo, hi = lo;
       }
+      Change c;
+      if (fits_from) {
+        c = {p_lo, p_hi, lo, hi};
+      } else {
+        c = {p_hi, p_lo, hi, lo};
+      }
+      return c;
+    };
+    const auto tip_step = [&](const ContactPoint& from) {
+      return [&e, &from, this](double x, ContactPoint* to) {
+        EvalStatus st;
+        int n = 0;
+        return e.Step(from, x, spec_.newton, to, &st, &n);
+      };
     };
     const auto open_gap = [&](const ContactPoint& p, double at) {
       gap.emplace();
       gap->before = p;
       gap->s_begin = at;
       gap->why = why;
+      gap_dir = p.duv.norm() > 0.0 ? Eigen::Vector2d(p.duv.normalized()) : Eigen::Vector2d::Zero();
     };
     const auto close_gap = [&](const ContactPoint& p, double at, bool resumes) {
       gap->after = p;
@@ -431,12 +450,44 @@ class Builder {
       cand->gaps.push_back(*gap);
       gap.reset();
     };
+    // The line cannot be followed on from cur inside a gap: the crossing ends there, and what lies
+    // beyond is traced from its other end (plane strategies) or left out.
+    const auto end_in_gap = [&] {
+      close_gap(cur, s, false);
+      cand->end = cur;
+      cand->length = s;
+    };
     if (!fits(cur, s)) open_gap(cur, s);
     const double full = spec_.newton.max_step_mm;
     double h = full;
     for (long k = 0;; ++k) {
       if (k > 4000000)
         Fail(cand->line, cand->constraint, s, cur.uv, "the pass never leaves the face");
+      if (gap) {
+        Eigen::Vector2d dir = gap_dir;
+        if (!MarchContact(e, cur, full, &dir, &next) || !e.Inside(next.uv)) return end_in_gap();
+        const double chord = (next.tip - cur.tip).norm();
+        if (fits(next, s + chord)) {
+          // The tool fits again: the next piece starts where it does, traced on from there.
+          const ContactPoint from = cur;
+          const Eigen::Vector2d from_dir = gap_dir;
+          const Change c = change(false, full, from, [&](double m, ContactPoint* to) {
+            Eigen::Vector2d d = from_dir;
+            return MarchContact(e, from, m, &d, to);
+          });
+          s += (c.fit.tip - from.tip).norm();
+          gap->contact_mm += (c.fit.p - from.p).norm();
+          cur = c.fit;
+          close_gap(cur, s, true);
+          h = full / 1024.0;
+          continue;
+        }
+        gap_dir = dir;
+        s += chord;
+        gap->contact_mm += (next.p - cur.p).norm();
+        cur = next;
+        continue;
+      }
       if (!e.Step(cur, h, spec_.newton, &next, &status, &its)) {
         // Shorter steps first: where the pass bends hard (a gouge ahead) they get close enough
         // for the curvature check to say so.
@@ -451,21 +502,20 @@ class Builder {
         const bool top = OverTop(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
           // Over a top the bottom's disc rides the chord: checked along it like any step.
-          for (int i = 1; i < 8 && top && !gap; ++i) {
+          for (int i = 1; i < 8 && top; ++i) {
             ContactPoint on = cur;
             on.p = piece.top;
             on.uv = piece.top_uv;
             on.n = cur.axis;
             on.tip = piece.Tip(piece.s_in + (piece.s_out - piece.s_in) * i / 8.0);
-            if (const auto w = GougeAt(on))
+            if (const auto w = GougeAt(on)) {
               Fail(cand->line, cand->constraint, piece.s_in, on.uv, *w);
+            }
           }
-          if (!gap) cand->bridges.push_back(piece);
+          cand->bridges.push_back(piece);
           cur = piece.exit;
           s = piece.s_exit;
-          const bool ok = fits(cur, s);
-          if (gap && ok) close_gap(cur, s, true);
-          if (!gap && !ok) open_gap(cur, s);
+          if (!fits(cur, s)) open_gap(cur, s);
           h = full / 1024.0;  // where the halving left it
           continue;
         }
@@ -478,20 +528,12 @@ class Builder {
                       spec_.newton.tolerance_mm, h, std::abs(1.0 / cur.concave_curvature),
                       cur.n.dot(cur.axis))
                 : EvalStatusText(status);
-        if (skip && (gap || status == EvalStatus::kOk || flat)) {
-          // The contact point cannot be traced on: inside a stretch where the tool does not fit
-          // (a flat bottom over the floor of a valley), or where a flat bottom would rest on the
-          // face away from the strategy's contact point (a top on a uv or plane_cc line). The
-          // crossing ends here; what lies beyond is traced from its other end (plane strategies)
-          // or left out, and said so.
-          if (!gap) {
-            why = stuck;
-            open_gap(cur, s);
-          }
-          close_gap(cur, s, false);
-          cand->end = cur;
-          cand->length = s;
-          return;
+        if (skip && (status == EvalStatus::kOk || flat)) {
+          // A flat bottom resting on the face away from the strategy's contact point (a top on
+          // a uv or plane_cc line): the line ends here, said so.
+          why = stuck;
+          open_gap(cur, s);
+          return end_in_gap();
         }
         Fail(cand->line, cand->constraint, s, cur.uv, stuck);
       }
@@ -512,40 +554,60 @@ class Builder {
       if (out_chord > 0.0) {
         const ContactPoint end = Bisect(e, cur, 1.0, out_chord);
         const double arc = ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
-        if (!gap && !fits(end, s + arc)) {
-          ContactPoint at;
-          double x;
-          change(cur, arc, true, &at, &x);
-          open_gap(at, s + x);
+        if (!fits(end, s + arc)) {
+          const Change c = change(true, arc, cur, tip_step(cur));
+          open_gap(c.fit, s + c.x_fit);
+          gap->contact_mm = (end.p - c.fit.p).norm();
+          close_gap(end, s + arc, false);
         }
         s += arc;
-        if (gap) close_gap(end, s, false);
         cand->end = end;
         cand->length = s;
         return;
       }
-      const bool ok = fits(next, s + h);
-      if (gap && ok) {
-        // The tool fits again: the next piece starts where it does, traced on from there.
-        ContactPoint at;
-        double x;
-        change(cur, h, false, &at, &x);
-        close_gap(at, s + x, true);
-        cur = at;
-        s += x;
-        h = full / 1024.0;
+      if (!fits(next, s + h)) {
+        // The gap starts after the last point where the tool fits; the march goes on from the
+        // first where it does not.
+        const Change c = change(true, h, cur, tip_step(cur));
+        open_gap(c.fit, s + c.x_fit);
+        gap->contact_mm = (c.unfit.p - c.fit.p).norm();
+        cur = c.unfit;
+        s += c.x_unfit;
         continue;
-      }
-      if (!gap && !ok) {
-        ContactPoint at;
-        double x;
-        change(cur, h, true, &at, &x);
-        open_gap(at, s + x);
       }
       s += h;
       cur = next;
       h = std::min(full, 2.0 * h);
     }
+  }
+
+  // One step of about `h` mm of the contact point along the strategy's line on the face (not of
+  // the tool's tip: this one goes on where the tip's path folds back), from `from`, in the
+  // direction `dir` in (u, v) (updated to the line's direction there). False if the line cannot be
+  // followed (no convergence, an evaluation refused).
+  bool MarchContact(const PassEvaluator& e, const ContactPoint& from, double h,
+                    Eigen::Vector2d* dir, ContactPoint* to) const {
+    Eigen::Vector2d t(-from.dg.y(), from.dg.x());
+    if (!(t.norm() > 0.0)) return false;
+    t.normalize();
+    if (t.dot(*dir) < 0.0) t = -t;
+    const double speed = (from.dp * t).norm();  // mm of contact per unit of (u, v)
+    if (!(speed > 0.0)) return false;
+    Eigen::Vector2d uv = from.uv + t * (h / speed);
+    ContactPoint c;
+    for (int it = 0; it < 20; ++it) {
+      if (!face_.InBox(uv.x(), uv.y())) return false;
+      if (e.Evaluate(uv, &c, from.guide_t) != EvalStatus::kOk) return false;
+      if (std::abs(c.g) <= spec_.newton.tolerance_mm) {
+        *to = c;
+        *dir = t;
+        return true;
+      }
+      const double n2 = c.dg.squaredNorm();
+      if (!(n2 > 0.0)) return false;
+      uv -= c.dg * (c.g / n2);
+    }
+    return false;
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
@@ -864,8 +926,8 @@ std::string PassList::UnreachableText(std::size_t most) const {
   double total = 0.0;
   for (const Unreachable& u : unreachable) total += u.length_mm;
   std::string out = fmt::format(
-      "{} stretch{} of the strategy's lines left out where the tool does not fit: {:.6g} mm of "
-      "tool path, about {:.3g} mm^2 at the stepover\n",
+      "{} stretch{} of the strategy's lines left out where the tool does not fit: {:.6g} mm along "
+      "the face, about {:.3g} mm^2 at the stepover\n",
       unreachable.size(), unreachable.size() == 1 ? "" : "es", total, total * stepover_mm);
   for (std::size_t k = 0; k < unreachable.size() && k < most; ++k) {
     const Unreachable& u = unreachable[k];

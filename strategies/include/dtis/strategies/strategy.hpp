@@ -63,9 +63,9 @@ struct Unreachable {
   int line = 0;                                    // the strategy line, 1-based
   Eigen::Vector3d from = Eigen::Vector3d::Zero();  // contact point where the tool last fits
   Eigen::Vector3d to = Eigen::Vector3d::Zero();    // where it fits again, or where the trace stops
-  double length_mm = 0.0;                          // of tool tip path left out
-  bool resumes = false;                            // false: the line is not finished past it
-  std::string why;                                 // the first reason met on it
+  double length_mm = 0.0;  // of the line on the face (the contact point's path) left out
+  bool resumes = false;    // false: the line is not finished past it
+  std::string why;         // the first reason met on it
 };
 
 struct PassList {
