@@ -388,6 +388,9 @@ int Stream(const StreamArgs& a) {
   std::optional<dtis::AxisVector> from;
   if (!a.from.empty()) from = ParseAxisPositions(a.from, *machine);
   const auto segments = dtis::io::JobSegments(job, *machine, from);
+  if (const std::string notes = segments->Notes(); !notes.empty()) {
+    std::fputs(("unreachable      " + notes).c_str(), stderr);
+  }
   std::optional<dtis::io::SetpointWriter> record;
   if (!a.record.empty()) record.emplace(a.record, dtis::io::AxisNames(*machine));
   StreamOutput output(a.to, *machine, a.index, a.buffer);

@@ -119,6 +119,14 @@ else
   echo "FAIL on-gouge-skip: $err"; failures=$((failures + 1))
 fi
 rm -f "$work/skip.csv"
+checks=$((checks + 1))
+if err=$("$dtis" stream "$work/skip.toml" --to "$work/skip.txt" --pace none 2>&1) &&
+  [[ "$err" == "unreachable      "*"stretches"*"stream           complete"* ]]; then
+  echo "ok on-gouge-skip-stream"
+else
+  echo "FAIL on-gouge-skip-stream: $err"; failures=$((failures + 1))
+fi
+rm -f "$work/skip.txt"
 sed "s/^face = 3/face = 1\nrotate_deg = [0, 90, 0]/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [500, 510]/" "$work/surf.toml" > "$work/miss.toml"
 expect misses "misses the face" -- "$dtis" run "$work/miss.toml" -o "$work/out.csv"
 

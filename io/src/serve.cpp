@@ -127,6 +127,9 @@ class Daemon {
       const int id = ++last_id_;
       queue_.push_back({id, std::move(job), std::move(segments)});
       reply = {{"ok", true}, {"id", id}, {"queued", queue_.size()}};
+      if (const std::string notes = queue_.back().segments->Notes(); !notes.empty()) {
+        reply["unreachable"] = notes;
+      }
       wake_.notify_all();
     } catch (const std::exception& e) {
       reply = {{"ok", false}, {"error", e.what()}};

@@ -187,6 +187,7 @@ class SurfaceSegments final : public SegmentSource {
     CheckMotionBound(job, length_mm);
   }
   void StartFrom(const std::optional<AxisVector>& from) override { from_ = from; }
+  std::string Notes() const override { return setup_.passes.UnreachableText(8); }
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     const auto& passes = setup_.passes.passes;

@@ -45,6 +45,9 @@ class SegmentSource {
   // was built (a daemon validates a job when it is submitted and links it when it starts): a link
   // leads from there, as from JobSegments' `from`. Call before the first Next.
   virtual void StartFrom(const std::optional<AxisVector>& from) { (void)from; }
+  // What the job leaves out, for the operator before the machine moves (a surface job's
+  // stretches where the tool does not fit, strategies::PassList::UnreachableText), or "".
+  virtual std::string Notes() const { return ""; }
 };
 
 // The segments of any job, in the order `dtis run` plans them (passes and links of a surface job,
