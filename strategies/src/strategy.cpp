@@ -837,14 +837,16 @@ class Builder {
     // [0, kRings] on the bottom (radius R t / kRings), then the corner (angle 90 deg (t - kRings)
     // / kCorner from the bottom).
     const bool bottom = big_r > 0.0, corner = r > 0.0;
-    const double t0 = bottom ? 1.0 : kRings, t1 = corner ? kRings + kCorner : kRings;
+    // (A ball has no bottom: its outline starts at the tip, t = kRings, sampled once.)
+    const double t0 = bottom ? 1.0 : kRings + 1.0, t1 = corner ? kRings + kCorner : kRings;
+    const double t_min = bottom ? 0.0 : kRings;
     const auto point = [&](double phi, double t) -> Eigen::Vector3d {
       const Eigen::Vector3d e = std::cos(phi) * e1 + std::sin(phi) * e2;
       if (t <= kRings) return p.tip + e * (big_r * t / kRings);
       const double psi = 0.5 * M_PI * (t - kRings) / kCorner;
       return p.tip + r * a + big_r * e + r * (std::sin(psi) * e - std::cos(psi) * a);
     };
-    if (bottom) drop(p.tip);
+    drop(p.tip);
     const int n_t = static_cast<int>(t1 - t0) + 1;
     std::vector<double> grid(static_cast<std::size_t>(kAround * n_t));
     const auto at = [&](int k, int i) -> double& {
@@ -855,13 +857,15 @@ class Builder {
       for (int i = 0; i < n_t; ++i) at(k, i) = drop(point(k * dphi, t0 + i));
     }
     // Refine around the local maxima of the depth that are not the contact: coordinate-wise
-    // golden sections over the cell on either side, twice.
+    // golden sections over the cell on either side, twice. Between two samples the side is
+    // nearer the face than they are by at most about (R + r) (1 - cos 11.25 deg) < 0.02 (R + r):
+    // samples farther from it cannot hide a gouge.
     const double near = 0.05 * (big_r + r) + 1e-3;
     const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
     for (int k = 0; k < kAround; ++k) {
       for (int i = 0; i < n_t; ++i) {
         const double v = at(k, i);
-        if (!std::isfinite(v) || v < -0.05 * (big_r + r)) continue;
+        if (!std::isfinite(v) || v < -0.03 * (big_r + r)) continue;
         bool top = true;
         for (int dk = -1; dk <= 1 && top; ++dk) {
           for (int di = -1; di <= 1; ++di) {
@@ -872,14 +876,14 @@ class Builder {
         double phi = k * dphi, t = t0 + i;
         for (int round = 0; round < 2; ++round) {
           for (int axis = 0; axis < 2; ++axis) {
-            double lo = axis == 0 ? phi - dphi : std::max(t0, t - 1.0);
+            double lo = axis == 0 ? phi - dphi : std::max(t_min, t - 1.0);
             double hi = axis == 0 ? phi + dphi : std::min(t1, t + 1.0);
             const auto f = [&](double x) {
               return axis == 0 ? drop(point(x, t)) : drop(point(phi, x));
             };
             double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
             double f1 = f(x1), f2 = f(x2);
-            for (int it = 0; it < 8; ++it) {
+            for (int it = 0; it < 6; ++it) {
               if (f1 >= f2) {
                 hi = x2, x2 = x1, f2 = f1, x1 = hi - gr * (hi - lo), f1 = f(x1);
               } else {
