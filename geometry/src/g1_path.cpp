@@ -14,6 +14,7 @@
 #include <span>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/golden_section.hpp"
 #include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
 
@@ -406,20 +407,10 @@ G1Path::CornerPlan G1Path::PlanCorner(std::size_t k) const {
       if (f > best_feed) best = l2, best_feed = f;
     }
     const double ratio = std::pow(l2_max / lo, 1.0 / kScan);
-    double a = std::log(std::max(lo, best / ratio)), b = std::log(std::min(l2_max, best * ratio));
-    const double g = (std::sqrt(5.0) - 1.0) / 2.0;
-    double x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double f1 = feed(std::exp(x1)), f2 = feed(std::exp(x2));
-    for (int i = 0; i < 12; ++i) {
-      if (f1 >= f2) {
-        b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = feed(std::exp(x1));
-      } else {
-        a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = feed(std::exp(x2));
-      }
-    }
-    for (const auto& [x, f] : {std::pair{x1, f1}, std::pair{x2, f2}}) {
-      if (f > best_feed) best = std::exp(x), best_feed = f;
-    }
+    const auto [x, f] = GoldenSectionMax([&](double y) { return feed(std::exp(y)); },
+                                         std::log(std::max(lo, best / ratio)),
+                                         std::log(std::min(l2_max, best * ratio)), 12);
+    if (f > best_feed) best = std::exp(x), best_feed = f;
     c.l2 = best;
     c.feed = best_feed;
   } else {

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "dtis/core/error.hpp"
+#include "dtis/core/golden_section.hpp"
 
 namespace dtis::strategies {
 namespace {
@@ -861,7 +862,6 @@ class Builder {
     // nearer the face than they are by at most about (R + r) (1 - cos 11.25 deg) < 0.02 (R + r):
     // samples farther from it cannot hide a gouge.
     const double near = 0.05 * (big_r + r) + 1e-3;
-    const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
     for (int k = 0; k < kAround; ++k) {
       for (int i = 0; i < n_t; ++i) {
         const double v = at(k, i);
@@ -876,21 +876,12 @@ class Builder {
         double phi = k * dphi, t = t0 + i;
         for (int round = 0; round < 2; ++round) {
           for (int axis = 0; axis < 2; ++axis) {
-            double lo = axis == 0 ? phi - dphi : std::max(t_min, t - 1.0);
-            double hi = axis == 0 ? phi + dphi : std::min(t1, t + 1.0);
+            const double lo = axis == 0 ? phi - dphi : std::max(t_min, t - 1.0);
+            const double hi = axis == 0 ? phi + dphi : std::min(t1, t + 1.0);
             const auto f = [&](double x) {
               return axis == 0 ? drop(point(x, t)) : drop(point(phi, x));
             };
-            double x1 = hi - gr * (hi - lo), x2 = lo + gr * (hi - lo);
-            double f1 = f(x1), f2 = f(x2);
-            for (int it = 0; it < 6; ++it) {
-              if (f1 >= f2) {
-                hi = x2, x2 = x1, f2 = f1, x1 = hi - gr * (hi - lo), f1 = f(x1);
-              } else {
-                lo = x1, x1 = x2, f1 = f2, x2 = lo + gr * (hi - lo), f2 = f(x2);
-              }
-            }
-            (axis == 0 ? phi : t) = f1 >= f2 ? x1 : x2;
+            (axis == 0 ? phi : t) = GoldenSectionMax(f, lo, hi, 6).first;
           }
         }
       }
