@@ -923,6 +923,13 @@ TEST(SurfacePass, ABallInAValleyTighterThanItLeavesTheFloorOut) {
     }
     ExpectToolAboveFace(face, ball, passes, 0.05, 0.3);
   }
+  // A valley no wider than that stretch leaves nothing to finish: an error that says where.
+  const FaceSurface narrow(Valley(rho, 2.0), "narrow valley");
+  StrategySpec spec;
+  spec.stepover_mm = 7.5;
+  test::ExpectError([&] { strategies::BuildPasses(narrow, ball, Orientation{}, spec); },
+                    {"narrow valley", "the tool fits nowhere along the plane_cl strategy's passes",
+                     "line 1, from (", "the tool gouges"});
 }
 
 TEST(SurfacePass, AFlatBottomOnAPlaneAcrossTheAxisHasItsTipOnThePlane) {

@@ -124,8 +124,12 @@ class Builder {
       if (open) piece(from, s0, c.end, c.length);
     }
     if (list.passes.empty()) {
-      throw Error("{}: the tool fits nowhere along the {} strategy's passes: {}", face_.Where(),
-                  StrategySpec::KindName(spec_.kind), list.unreachable.front().why);
+      const Unreachable& u = list.unreachable.front();
+      throw Error(
+          "{}: the tool fits nowhere along the {} strategy's passes (line {}, from ({:.6g}, "
+          "{:.6g}, {:.6g}): {})",
+          face_.Where(), StrategySpec::KindName(spec_.kind), u.line, u.from.x(), u.from.y(),
+          u.from.z(), u.why);
     }
     return list;
   }
