@@ -7,9 +7,13 @@
 
 #include <gtest/gtest.h>
 
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepClass_FaceClassifier.hxx>
+#include <BRepTools.hxx>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <gp_Pnt2d.hxx>
 #include <numbers>
 #include <regex>
 #include <sstream>
@@ -17,6 +21,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
 #include "dtis/geometry/face_surface.hpp"
+#include "dtis/geometry/link_height.hpp"
 #include "dtis/geometry/path_fit.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/program.hpp"
@@ -331,26 +336,86 @@ TEST(Compare, ThreeAxisSampleFirstPasses) {
   CheckCompare(job, test::Scratch("compare_3x"));
 }
 
-// A link rises to the face's top plus the job's clearance (the placed face's optimal bounding box,
-// found only when a link asks for it) and no higher: the highest Z of a two-pass run on the 3-axis
-// sample is that height, and the run starts and ends below the face's top.
-TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
+// The face's points on a dense grid of its (u, v) domain, those inside its trims, sampled
+// through OpenCASCADE (independently of dtis' evaluation and of the mesh links measure with).
+std::vector<Vector3d> FacePoints(const TopoDS_Face& face, int n) {
+  double u0, u1, v0, v1;
+  BRepTools::UVBounds(face, u0, u1, v0, v1);
+  const BRepAdaptor_Surface surface(face);
+  std::vector<Vector3d> points;
+  for (int i = 0; i <= n; ++i) {
+    for (int k = 0; k <= n; ++k) {
+      const double u = u0 + (u1 - u0) * i / n, v = v0 + (v1 - v0) * k / n;
+      const BRepClass_FaceClassifier inside(face, gp_Pnt2d(u, v), 1e-7);
+      if (inside.State() == TopAbs_OUT) continue;
+      const gp_Pnt p = surface.Value(u, v);
+      points.emplace_back(p.X(), p.Y(), p.Z());
+    }
+  }
+  return points;
+}
+
+// The face's highest point within `radius` (in X, Y) of the segment from a to b.
+double HighestNear(const std::vector<Vector3d>& points, const Vector3d& a, const Vector3d& b,
+                   double radius) {
+  double highest = -INFINITY;
+  const Eigen::Vector2d p = a.head<2>(), d = b.head<2>() - p;
+  for (const Vector3d& x : points) {
+    const double t = d.squaredNorm() > 0.0
+                         ? std::clamp((x.head<2>() - p).dot(d) / d.squaredNorm(), 0.0, 1.0)
+                         : 0.0;
+    if ((p + t * d - x.head<2>()).norm() <= radius) highest = std::max(highest, x.z());
+  }
+  return highest;
+}
+
+// A link traverses at the clearance above the face where the tool passes, not above the face's
+// top: on the first passes of the 3-axis sample (a vertical ball end, each pass along +Y and each
+// link back over the face), every traverse's height is the clearance above the face's highest
+// point within the tool's radius of it, up to the deflection of the mesh the links measure the
+// face with, the tool clears the face by the clearance at every row of it, and the traverses away
+// from the face's crest stay well below its top plus the clearance.
+TEST(SurfaceJob, LinksTraverseAtTheClearanceAboveTheFaceWhereTheToolPasses) {
   const std::string path = test::Source("samples/jobs/surface_plane_cl_3axis.toml");
   std::string text = ReadFile(path);
-  text.insert(text.find("[link]"), "max_passes = 2\n\n");
+  text.insert(text.find("[link]"), "max_passes = 6\n\n");
   const io::Job job = io::ParseJob(text, path);
   const io::RunResult r = io::RunJob(job);
   ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
-  ASSERT_EQ(r.passes, 2);
+  ASSERT_EQ(r.passes, 6);
   ASSERT_GT(r.links, 0);
   const geometry::StepModel model = geometry::StepModel::Load(job.surface->step_file);
   const TopoDS_Face placed = geometry::PlaceFace(
       model.Face(job.surface->face), job.surface->rotate_deg, job.surface->translate_mm);
   const double top = geometry::FaceBox(placed).second.z();
-  const std::vector<double>& z = r.table.columns[2];
+  const double clearance = job.surface->clearance_mm, radius = job.surface->tool.radius;
+  const std::vector<Vector3d> face = FacePoints(placed, 400);
   ASSERT_EQ(r.table.axes[2], "Z");
-  const double highest = *std::max_element(z.begin(), z.end());
-  EXPECT_NEAR(highest, top + job.surface->clearance_mm, 1e-9);
+  const std::vector<double>& x = r.table.columns[0];
+  const std::vector<double>& y = r.table.columns[1];
+  const std::vector<double>& z = r.table.columns[2];
+  // The traverses: runs of rows at one height that move in X or Y, at least 10 periods long.
+  int traverses = 0, low = 0;
+  for (std::size_t k = 1; k < z.size();) {
+    std::size_t end = k;
+    while (end + 1 < z.size() && z[end + 1] == z[k]) ++end;
+    const Vector3d first(x[k], y[k], z[k]), last(x[end], y[end], z[end]);
+    if (end - k >= 10 && (last - first).norm() > 1.0) {
+      ++traverses;
+      for (std::size_t i = k; i <= end; ++i) {
+        const Vector3d tip(x[i], y[i], z[i]);
+        EXPECT_LE(HighestNear(face, tip, tip, radius), tip.z() - clearance + 1e-9) << "row " << i;
+      }
+      const double under = HighestNear(face, first, last, radius);
+      EXPECT_GE(z[k], under + clearance - 1e-9) << "row " << k;
+      EXPECT_LE(z[k], under + clearance + 0.2) << "row " << k;
+      EXPECT_LE(z[k], top + clearance + 1e-9) << "row " << k;
+      if (z[k] < top + clearance - 1.0) ++low;
+    }
+    k = end + 1;
+  }
+  EXPECT_EQ(traverses, r.passes - 1);
+  EXPECT_GE(low, 2);
   EXPECT_LT(z.front(), top + 1e-9);
   EXPECT_LT(z.back(), top + 1e-9);
   // The limiter report's feed is the tip's speed, across the passes and links too (each counts
@@ -367,6 +432,29 @@ TEST(SurfaceJob, LinksTraverseAtTheFaceTopPlusTheClearance) {
     }
     EXPECT_NEAR(feed, std::sqrt(chord) / job.vpop.period_s, 1e-3 * (1.0 + feed)) << "row " << k;
   }
+}
+
+// Where the face is not under the traverse, a link stays at the height it backs off to; where
+// either tool axis is tilted, the tool's holder reaches sideways by a length the job does not
+// give, and the link traverses above the face's top, as the clearance asks.
+TEST(SurfaceJob, LinksAwayFromTheFaceOrTiltedKeepTheirHeights) {
+  const geometry::StepModel model = geometry::StepModel::Load(
+      test::Source("samples/parts/occt_trj8_c2-db-214_single_bspline_face.stp"));
+  const TopoDS_Face placed =
+      geometry::PlaceFace(model.Face(1), Vector3d(0, 90, 0), Vector3d::Zero());
+  const geometry::LinkHeights heights(placed, "trj8 face 1", 3.0, 5.0);
+  const double top = geometry::FaceBox(placed).second.z();
+  EXPECT_EQ(heights.TopZ(), top);
+  const Vector3d up = Vector3d::UnitZ();
+  // Far from the face: the higher of the two backed-off points.
+  EXPECT_EQ(heights.TraverseZ({Vector3d(500, 500, -40), up}, {Vector3d(520, 500, -30), up}), -25.0);
+  // Over the face with a tilted axis: its top plus the clearance (or higher, where the link
+  // backs off above it).
+  const Vector3d tilted = Vector3d(0.1, 0.0, 1.0).normalized();
+  const Pose a{Vector3d(0, 0, top - 20.0), tilted}, b{Vector3d(2, 0, top - 20.0), up};
+  EXPECT_EQ(heights.TraverseZ(a, b), top + 5.0);
+  EXPECT_EQ(heights.TraverseZ({Vector3d(0, 0, top + 10.0), tilted}, b),
+            top + 10.0 + 5.0 * tilted.z());
 }
 
 // Two atomic outputs open at once (the tables, a run's setpoints and limiters) each keep their own

@@ -170,13 +170,13 @@ VariantResult G1Variant(const Context& c, double tol) {
   const std::string file =
       c.stem.empty() ? c.job.name + ".ngc" : fmt::format("{}_g1_{}.ngc", c.stem, FileMicrons(tol));
   const double feed_mm_min = c.setup.pass_options.feed_mm_s * 60.0;
-  const GcodeExport g =
-      ExportG1(poses, c.machine, feed_mm_min, {c.setup.safe_z_mm.get(), c.setup.clearance_mm},
-               {fmt::format("dtis G1 export of job {}: {} passes, chordal tolerance {} mm",
-                            c.job.name, n, tol),
-                fmt::format("machine {}: X Y Z = tool tip (mm), rotary words = machine axes (deg)",
-                            c.machine.Name())},
-               file);
+  const GcodeExport g = ExportG1(
+      poses, c.machine, feed_mm_min, {0.0, c.setup.clearance_mm, c.setup.link_heights.get()},
+      {fmt::format("dtis G1 export of job {}: {} passes, chordal tolerance {} mm", c.job.name, n,
+                   tol),
+       fmt::format("machine {}: X Y Z = tool tip (mm), rotary words = machine axes (deg)",
+                   c.machine.Name())},
+      file);
   for (const auto& p : vertices) v.blocks += static_cast<long>(p.size()) - 1;
   if (!c.stem.empty()) WriteText(file, g.text, &v);
 
@@ -277,7 +277,7 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
         {&fits[k]->bottom, fits[k]->top ? &*fits[k]->top : nullptr, c.samples[k].axis.front()});
   }
   const double feed_mm_min = c.setup.pass_options.feed_mm_s * 60.0;
-  const LinkSpec links{c.setup.safe_z_mm.get(), c.setup.clearance_mm};
+  const LinkSpec links{0.0, c.setup.clearance_mm, c.setup.link_heights.get()};
   if (!c.stem.empty()) {
     const std::string base = fmt::format("{}_bspline_{}", c.stem, FileMicrons(tol));
     for (std::size_t k = 0; k < n; ++k) {

@@ -40,8 +40,8 @@ void LinkBlocks(const Pose* from, const Pose& to, const LinkSpec& links, Block b
     block(to);
     return;
   }
-  const std::vector<Pose> way =
-      geometry::LinkWaypoints(*from, to, links.safe_z_mm, links.clearance_mm);
+  const double z = links.heights ? links.heights->TraverseZ(*from, to) : links.traverse_z_mm;
+  const std::vector<Pose> way = geometry::LinkWaypoints(*from, to, z, links.clearance_mm);
   for (std::size_t w = 1; w < way.size(); ++w) block(way[w]);
 }
 

@@ -548,9 +548,8 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
   SurfaceSetup setup;
   if (phase) phase("tracing passes");
   setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
-  setup.safe_z_mm = std::async(std::launch::deferred, [placed, clearance = spec.clearance_mm] {
-                      return geometry::FaceBox(placed).second.z() + clearance;
-                    }).share();
+  setup.link_heights = std::make_shared<const geometry::LinkHeights>(
+      placed, FaceName(spec), spec.tool.radius, spec.clearance_mm);
   setup.clearance_mm = spec.clearance_mm;
   setup.pass_options = job.vpop;
   setup.link_options = job.vpop;
@@ -595,8 +594,8 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
     const Pose to = machine.Forward(next.rows.front().q);
     std::vector<std::unique_ptr<PathSource>> moves;
     try {
-      moves = geometry::LinkMoves(from, to, setup.safe_z_mm.get(), setup.clearance_mm, machine,
-                                  setup.link_corners);
+      moves = geometry::LinkMoves(from, to, setup.link_heights->TraverseZ(from, to),
+                                  setup.clearance_mm, machine, setup.link_corners);
     } catch (const Error& e) {
       throw Error("{}: linking pass {} to pass {}: {}", job_file, k + 1, k + 2, e.what());
     }

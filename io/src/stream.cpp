@@ -47,14 +47,15 @@ class Linker {
         corners_(std::move(corners)) {}
 
   // Queues the link moves from `at` to the start of `next` (none when already there), traversing
-  // at the height `safe_z` gives (none: above both ends by the clearance).
+  // at the height `heights` gives (none: above both ends by the clearance).
   void LinkTo(const std::optional<AxisVector>& at, const PathSource& next,
-              const std::function<double()>& safe_z, const std::string& name) {
+              const geometry::LinkHeights* heights, const std::string& name) {
     if (!at) return;
     const Pose from = machine_.Forward(*at);
     const Pose to = StartPose(next, machine_);
     if ((from.tip - to.tip).norm() < 1e-9 && (from.axis - to.axis).norm() < 1e-12) return;
-    const double z = safe_z ? safe_z() : std::max(from.tip.z(), to.tip.z()) + clearance_;
+    const double z =
+        heights ? heights->TraverseZ(from, to) : std::max(from.tip.z(), to.tip.z()) + clearance_;
     for (auto& m : geometry::LinkMoves(from, to, z, clearance_, machine_, corners_)) {
       pending_.push_back({std::shared_ptr<const PathSource>(std::move(m)), options_, name, -1});
     }
@@ -98,7 +99,7 @@ class ListSegments final : public SegmentSource {
       started_ = true;
       first_ = next_();
       if (first_ && from_) {
-        linker_.LinkTo(from_, *first_->path, {}, "link to the start");
+        linker_.LinkTo(from_, *first_->path, nullptr, "link to the start");
         if (auto link = linker_.Pop()) return link;
       }
     }
@@ -198,8 +199,7 @@ class SurfaceSegments final : public SegmentSource {
       linked_to_next_ = true;
       const std::string name = k == 0 ? std::string("link to pass 1")
                                       : fmt::format("link from pass {} to pass {}", k, k + 1);
-      linker_.LinkTo(
-          here, *passes[k], [this] { return setup_.safe_z_mm.get(); }, name);
+      linker_.LinkTo(here, *passes[k], setup_.link_heights.get(), name);
       if (auto link = linker_.Pop()) return link;
     }
     linked_to_next_ = false;

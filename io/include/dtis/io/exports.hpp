@@ -19,14 +19,17 @@
 #include "dtis/core/machine.hpp"
 #include "dtis/core/pose.hpp"
 #include "dtis/geometry/bspline_curve.hpp"
+#include "dtis/geometry/link_height.hpp"
 #include "dtis/io/gcode.hpp"
 
 namespace dtis::io {
 
-// How passes are linked (as geometry::LinkWaypoints does): back off, rise, traverse, come down.
+// How passes are linked (as geometry::LinkWaypoints does): back off, rise, traverse at the height
+// `heights` gives for the two poses (none: at traverse_z_mm), come down.
 struct LinkSpec {
-  double safe_z_mm = 0.0;
+  double traverse_z_mm = 0.0;
   double clearance_mm = 0.0;
+  const geometry::LinkHeights* heights = nullptr;
 };
 
 struct GcodeExport {

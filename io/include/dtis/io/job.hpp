@@ -4,7 +4,6 @@
 #pragma once
 
 #include <functional>
-#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -14,6 +13,7 @@
 #include "dtis/core/path_source.hpp"
 #include "dtis/geometry/arc_length.hpp"
 #include "dtis/geometry/face_mesh.hpp"
+#include "dtis/geometry/link_height.hpp"
 #include "dtis/geometry/tool.hpp"
 #include "dtis/interp/taylor.hpp"
 #include "dtis/interp/verifier.hpp"
@@ -164,10 +164,10 @@ void WriteRunOutputs(const Job& job, const RunResult& result, const std::string&
 // A surface job's passes and how they are linked (for RunJob and the comparison of exports).
 struct SurfaceSetup {
   strategies::PassList passes;
-  // The height links traverse at: the placed face's top (its optimal bounding box) plus the
-  // clearance. Found on first use, from any thread: a job with one pass and no link to it never
-  // pays for the box (2 ms on trj8, a seventh of the 5-axis sample end to end).
-  std::shared_future<double> safe_z_mm;
+  // The heights links traverse at: the clearance above the face where the tool passes
+  // (geometry/link_height.hpp). Found on first use, from any thread: a job with one pass and no
+  // link to it never meshes the face.
+  std::shared_ptr<const geometry::LinkHeights> link_heights;
   double clearance_mm = 0.0;  // links back off this far along the tool axis first
   interp::VpopOptions pass_options, link_options;
   // The links' corners are smoothed as the G1 variants' rapids are ([compare] contour_tol_mm ...).
