@@ -185,6 +185,29 @@ std::string TomlTable::Choice(std::string_view key, const std::vector<std::strin
   return *OptionalChoice(key, choices);
 }
 
+std::optional<std::vector<IndexOrName>> TomlTable::OptionalIndicesOrNames(std::string_view key) {
+  const toml::node* n = Get(key);
+  if (!n) return std::nullopt;
+  const auto one = [&](const toml::node& item, const std::string& what) {
+    if (const auto* i = item.as_integer()) return IndexOrName{i->get(), {}};
+    if (const auto* s = item.as_string()) {
+      if (s->get().empty()) Fail(key, what + "is an empty string; expected a name");
+      return IndexOrName{0, s->get()};
+    }
+    Fail(key, what + "is " + TypeName(item) + "; expected an integer or a string");
+  };
+  std::vector<IndexOrName> items;
+  if (const auto* array = n->as_array()) {
+    if (array->empty()) Fail(key, "expected an integer, a string or an array of them, got []");
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      items.push_back(one(*array->get(i), fmt::format("element {} ", i + 1)));
+    }
+  } else {
+    items.push_back(one(*n, "the value "));
+  }
+  return items;
+}
+
 std::vector<double> TomlTable::Numbers(std::string_view key) {
   const toml::node& n = Require(key);
   const auto* array = n.as_array();

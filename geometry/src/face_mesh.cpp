@@ -6,6 +6,7 @@
 #include <Poly_Triangulation.hxx>
 #include <TopLoc_Location.hxx>
 #include <TopoDS.hxx>
+#include <algorithm>
 #include <cmath>
 
 #include "dtis/core/error.hpp"
@@ -49,6 +50,19 @@ FaceMesh MeshFace(const TopoDS_Face& face, const std::string& where,
     }
     return mesh;
   }
+}
+
+FaceMesh MeshFaces(const std::vector<NamedFace>& faces, const FaceMeshOptions& options) {
+  FaceMesh all;
+  for (const NamedFace& f : faces) {
+    const FaceMesh one = MeshFace(f.face, f.where, options);
+    const int base = static_cast<int>(all.vertices.size());
+    all.vertices.insert(all.vertices.end(), one.vertices.begin(), one.vertices.end());
+    for (const auto& t : one.triangles)
+      all.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+    all.deflection_mm = std::max(all.deflection_mm, one.deflection_mm);
+  }
+  return all;
 }
 
 }  // namespace dtis::geometry

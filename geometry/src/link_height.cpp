@@ -93,20 +93,17 @@ struct LinkHeights::Data {
   std::vector<Triangle> triangles;
 };
 
-LinkHeights::LinkHeights(const TopoDS_Face& face, std::string where, double tool_radius_mm,
-                         double clearance_mm)
-    : face_(face),
-      where_(std::move(where)),
-      tool_radius_mm_(tool_radius_mm),
-      clearance_mm_(clearance_mm) {}
+LinkHeights::LinkHeights(std::vector<NamedFace> faces, double tool_radius_mm, double clearance_mm)
+    : faces_(std::move(faces)), tool_radius_mm_(tool_radius_mm), clearance_mm_(clearance_mm) {}
 
 LinkHeights::~LinkHeights() = default;
 
 const LinkHeights::Data& LinkHeights::Get() const {
   std::call_once(once_, [this] {
     auto d = std::make_unique<Data>();
-    d->top_z = FaceBox(face_).second.z();
-    const FaceMesh mesh = MeshFace(face_, where_, LinkMeshOptions());
+    d->top_z = -std::numeric_limits<double>::infinity();
+    for (const NamedFace& f : faces_) d->top_z = std::max(d->top_z, FaceBox(f.face).second.z());
+    const FaceMesh mesh = MeshFaces(faces_, LinkMeshOptions());
     d->deflection = mesh.deflection_mm;
     d->triangles.reserve(mesh.triangles.size());
     for (const auto& t : mesh.triangles) {

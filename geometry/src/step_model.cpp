@@ -7,11 +7,17 @@
 #include <BRepTools.hxx>
 #include <GProp_GProps.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <Interface_InterfaceModel.hxx>
 #include <Interface_Static.hxx>
 #include <STEPControl_Reader.hxx>
 #include <Standard_Failure.hxx>
+#include <StepShape_Face.hxx>
+#include <TCollection_HAsciiString.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
+#include <TransferBRep.hxx>
+#include <XSControl_TransferReader.hxx>
+#include <XSControl_WorkSession.hxx>
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -121,6 +127,70 @@ FaceInfo Describe(int index, const TopoDS_Face& face) {
   return info;
 }
 
+// Where a face lies on its surface: its (u, v) bounds and the point at their middle.
+struct FacePlace {
+  std::array<double, 4> uv{};
+  gp_Pnt middle;
+};
+
+FacePlace PlaceOf(const TopoDS_Face& face) {
+  FacePlace p;
+  BRepTools::UVBounds(face, p.uv[0], p.uv[1], p.uv[2], p.uv[3]);
+  p.middle = BRepAdaptor_Surface(face).Value(0.5 * (p.uv[0] + p.uv[1]), 0.5 * (p.uv[2] + p.uv[3]));
+  return p;
+}
+
+bool SamePlace(const FacePlace& a, const FacePlace& b) {
+  for (std::size_t k = 0; k < 4; ++k) {
+    if (std::abs(a.uv[k] - b.uv[k]) > 1e-9 * (1.0 + std::abs(a.uv[k]))) return false;
+  }
+  return a.middle.Distance(b.middle) < 1e-7;
+}
+
+// Each face's name: that of the STEP face entity it was read from (ADVANCED_FACE('name', ...)),
+// or empty. The reader records which shape each entity became; where its shape healing then
+// rebuilt a face (as it does to the faces of a surface model), the face that has the entity's
+// (u, v) bounds and the same point at their middle carries its name.
+std::vector<std::string> FaceNames(const STEPControl_Reader& reader,
+                                   const std::vector<TopoDS_Face>& faces) {
+  std::vector<std::string> names(faces.size());
+  const Handle(XSControl_TransferReader) transfer = reader.WS()->TransferReader();
+  const Handle(Interface_InterfaceModel) entities = reader.WS()->Model();
+  if (transfer.IsNull() || entities.IsNull()) return names;
+  std::vector<std::pair<TopoDS_Face, std::string>> named;
+  for (int i = 1; i <= entities->NbEntities(); ++i) {
+    const auto entity = Handle(StepShape_Face)::DownCast(entities->Value(i));
+    if (entity.IsNull() || entity->Name().IsNull() || entity->Name()->Length() == 0) continue;
+    const TopoDS_Shape shape = TransferBRep::ShapeResult(transfer->TransientProcess(), entity);
+    if (shape.IsNull() || shape.ShapeType() != TopAbs_FACE) continue;
+    named.emplace_back(TopoDS::Face(shape), entity->Name()->ToCString());
+  }
+  if (named.empty()) return names;
+  std::vector<std::size_t> unmatched;
+  for (std::size_t k = 0; k < faces.size(); ++k) {
+    const auto same = std::find_if(named.begin(), named.end(),
+                                   [&](const auto& n) { return n.first.IsSame(faces[k]); });
+    if (same != named.end()) {
+      names[k] = same->second;
+    } else {
+      unmatched.push_back(k);
+    }
+  }
+  if (unmatched.empty()) return names;
+  std::vector<FacePlace> places;
+  for (const auto& n : named) places.push_back(PlaceOf(n.first));
+  for (const std::size_t k : unmatched) {
+    const FacePlace here = PlaceOf(faces[k]);
+    for (std::size_t n = 0; n < named.size(); ++n) {
+      if (SamePlace(here, places[n])) {
+        names[k] = named[n].second;
+        break;
+      }
+    }
+  }
+  return names;
+}
+
 // STEPControl_Reader's static parameters are process-wide.
 std::mutex& ReaderMutex() {
   static std::mutex m;
@@ -143,11 +213,12 @@ StepModel StepModel::Load(const std::string& path) {
     }
     if (reader.TransferRoots() == 0) throw Error("{}: no shape could be read from the file", path);
     model.shape_ = reader.OneShape();
+    for (TopExp_Explorer e(model.shape_, TopAbs_FACE); e.More(); e.Next()) {
+      model.faces_.push_back(TopoDS::Face(e.Current()));
+    }
+    model.names_ = FaceNames(reader, model.faces_);
   } catch (const Standard_Failure& e) {
     throw Error("{}: OpenCASCADE failed reading the file: {}", path, e.GetMessageString());
-  }
-  for (TopExp_Explorer e(model.shape_, TopAbs_FACE); e.More(); e.Next()) {
-    model.faces_.push_back(TopoDS::Face(e.Current()));
   }
   if (model.faces_.empty()) throw Error("{}: the file holds no face", path);
   return model;
@@ -163,7 +234,24 @@ const TopoDS_Face& StepModel::Face(int index) const {
   return faces_[static_cast<std::size_t>(index - 1)];
 }
 
-FaceInfo StepModel::Info(int index) const { return Describe(index, Face(index)); }
+const std::string& StepModel::FaceName(int index) const {
+  Face(index);  // the range check
+  return names_[static_cast<std::size_t>(index - 1)];
+}
+
+std::vector<int> StepModel::FacesNamed(const std::string& name) const {
+  std::vector<int> found;
+  for (std::size_t k = 0; k < names_.size(); ++k) {
+    if (names_[k] == name) found.push_back(static_cast<int>(k) + 1);
+  }
+  return found;
+}
+
+FaceInfo StepModel::Info(int index) const {
+  FaceInfo info = Describe(index, Face(index));
+  info.name = FaceName(index);
+  return info;
+}
 
 std::vector<FaceInfo> StepModel::Infos() const {
   std::vector<FaceInfo> infos;
@@ -174,9 +262,10 @@ std::vector<FaceInfo> StepModel::Infos() const {
 std::string FormatFaceTable(const StepModel& model) {
   std::string out = fmt::format("{}: {} face{}\n", model.File(), model.FaceCount(),
                                 model.FaceCount() == 1 ? "" : "s");
-  out += fmt::format("{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10}  {:<40}  {:<26}  {}\n",
-                     "face", "type", "degree", "poles", "rational", "trimmed", "holes", "area mm2",
-                     "uv bounds", "from mm (x y z)", "size mm (x y z)");
+  out += fmt::format(
+      "{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10}  {:<40}  {:<26}  {:<26}  {}\n", "face",
+      "type", "degree", "poles", "rational", "trimmed", "holes", "area mm2", "uv bounds",
+      "from mm (x y z)", "size mm (x y z)", "name");
   for (const FaceInfo& f : model.Infos()) {
     const std::string degree = f.u_degree ? fmt::format("{}x{}", f.u_degree, f.v_degree) : "-";
     const std::string poles = f.u_poles ? fmt::format("{}x{}", f.u_poles, f.v_poles) : "-";
@@ -185,11 +274,11 @@ std::string FormatFaceTable(const StepModel& model) {
     const Eigen::Vector3d size = f.box_max - f.box_min;
     const std::string from =
         fmt::format("{:.6g} {:.6g} {:.6g}", f.box_min.x(), f.box_min.y(), f.box_min.z());
+    const std::string extent = fmt::format("{:.4g} {:.4g} {:.4g}", size.x(), size.y(), size.z());
     out += fmt::format(
-        "{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10.6g}  {:<40}  {:<26}  {:.4g} {:.4g} "
-        "{:.4g}\n",
+        "{:>5}  {:<10} {:>7} {:>7}  {:<8} {:<7} {:>5}  {:>10.6g}  {:<40}  {:<26}  {:<26}  {}\n",
         f.index, f.type, degree, poles, f.rational ? "yes" : "no", f.trimmed ? "yes" : "no",
-        f.holes, f.area_mm2, uv, from, size.x(), size.y(), size.z());
+        f.holes, f.area_mm2, uv, from, extent, f.name.empty() ? "-" : "'" + f.name + "'");
   }
   return out;
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <set>
@@ -19,6 +20,12 @@ class node;
 }  // namespace toml
 
 namespace dtis {
+
+// What a key that names things by number or by name holds: an integer, or a non-empty string.
+struct IndexOrName {
+  std::int64_t index = 0;  // when `name` is empty
+  std::string name;
+};
 
 class TomlTable {
  public:
@@ -49,6 +56,8 @@ class TomlTable {
   std::string Choice(std::string_view key, const std::vector<std::string>& choices);
   std::optional<std::string> OptionalChoice(std::string_view key,
                                             const std::vector<std::string>& choices);
+  // One integer or string, or a non-empty array of them (`face = 3`, `face = ["floor", 4]`).
+  std::optional<std::vector<IndexOrName>> OptionalIndicesOrNames(std::string_view key);
   std::vector<double> Numbers(std::string_view key);          // array of finite numbers
   std::vector<Eigen::Vector3d> Points(std::string_view key);  // array of [x, y] or [x, y, z]
   Eigen::Vector3d Point(std::string_view key);                // [x, y, z]

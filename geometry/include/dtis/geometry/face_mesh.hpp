@@ -31,4 +31,13 @@ struct FaceMeshOptions {
 FaceMesh MeshFace(const TopoDS_Face& face, const std::string& where,
                   const FaceMeshOptions& options = {});
 
+// A face as a job places it, and what errors call it ("part.stp face 3").
+struct NamedFace {
+  TopoDS_Face face;
+  std::string where;
+};
+
+// The faces meshed one by one (MeshFace) into one mesh, whose deflection is the largest of theirs.
+FaceMesh MeshFaces(const std::vector<NamedFace>& faces, const FaceMeshOptions& options = {});
+
 }  // namespace dtis::geometry

@@ -12,6 +12,7 @@ namespace dtis::geometry {
 
 struct FaceInfo {
   int index = 0;     // 1-based, in the order OpenCASCADE explores the shape
+  std::string name;  // the name the file gives the face (its ADVANCED_FACE's), often ""
   std::string type;  // "bspline", "plane", "cylinder", "cone", "sphere", "torus", ...
   int u_degree = 0;  // B-spline and Bezier faces only (0 otherwise)
   int v_degree = 0;
@@ -36,6 +37,10 @@ class StepModel {
   int FaceCount() const { return static_cast<int>(faces_.size()); }
   // 1-based; throws dtis::Error listing the valid range.
   const TopoDS_Face& Face(int index) const;
+  // The name the file gives face `index` ("" when none).
+  const std::string& FaceName(int index) const;
+  // The faces the file gives this name, in file order (CAD systems may give a name to several).
+  std::vector<int> FacesNamed(const std::string& name) const;
   // What `dtis faces` lists, worked out when asked (the bounding box is an optimisation over the
   // surface, a millisecond or more per face: a job that plans one face does not pay it for all).
   FaceInfo Info(int index) const;
@@ -45,6 +50,7 @@ class StepModel {
   std::string file_;
   TopoDS_Shape shape_;
   std::vector<TopoDS_Face> faces_;
+  std::vector<std::string> names_;
 };
 
 // The table `dtis faces` prints.
