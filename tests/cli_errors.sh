@@ -102,9 +102,13 @@ plane_normal = [1, 0, 0]
 direction = [0, 1, 0]
 stepover_mm = 2
 SURF
-expect bad-face "face 3 does not exist; the file has faces 1 to 1" -- "$dtis" run "$work/surf.toml" -o "$work/out.csv"
+expect bad-face "surf.toml:5: key 'surface.face': face 3 does not exist" -- "$dtis" run "$work/surf.toml" -o "$work/out.csv"
 sed 's/^face = 3/face = 4294967297/' "$work/surf.toml" > "$work/bigface.toml"
-expect face-2to32 "bigface.toml:5: key 'surface.face': expected a face index from 1 to 2147483647, got 4294967297" -- "$dtis" run "$work/bigface.toml" -o "$work/out.csv"
+expect face-2to32 "bigface.toml:5: key 'surface.face': expected a face number from 1 to 2147483647 or a face name, got 4294967297" -- "$dtis" run "$work/bigface.toml" -o "$work/out.csv"
+sed 's/^face = 3/face = "pocket"/' "$work/surf.toml" > "$work/noname.toml"
+expect face-name "noname.toml:5: key 'surface.face': $parts/occt_trj8_c2-db-214_single_bspline_face.stp has no face named 'pocket'; its named faces: '127' (1)" -- "$dtis" run "$work/noname.toml" -o "$work/out.csv"
+sed 's/^face = 3/face = [1, "127"]/' "$work/surf.toml" > "$work/twice.toml"
+expect face-twice "twice.toml:5: key 'surface.face': face 1 of $parts/occt_trj8_c2-db-214_single_bspline_face.stp is given twice (as 1 and '127')" -- "$dtis" run "$work/twice.toml" -o "$work/out.csv"
 sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 2\non_gouge = "stop"/' "$work/surf.toml" > "$work/undercut.toml"
 expect undercut "undercut" -- "$dtis" run "$work/undercut.toml" -o "$work/out.csv"
 sed 's/"stop"/"maybe"/' "$work/undercut.toml" > "$work/badgouge.toml"

@@ -385,8 +385,9 @@ TEST(SurfaceJob, LinksTraverseAtTheClearanceAboveTheFaceWhereTheToolPasses) {
   ASSERT_EQ(r.passes, 6);
   ASSERT_GT(r.links, 0);
   const geometry::StepModel model = geometry::StepModel::Load(job.surface->step_file);
-  const TopoDS_Face placed = geometry::PlaceFace(
-      model.Face(job.surface->face), job.surface->rotate_deg, job.surface->translate_mm);
+  const TopoDS_Face placed =
+      geometry::PlaceFace(model.Face(io::JobFaces(*job.surface, model).at(0)),
+                          job.surface->rotate_deg, job.surface->translate_mm);
   const double top = geometry::FaceBox(placed).second.z();
   const double clearance = job.surface->clearance_mm, radius = job.surface->tool.radius;
   const std::vector<Vector3d> face = FacePoints(placed, 400);
@@ -442,7 +443,7 @@ TEST(SurfaceJob, LinksAwayFromTheFaceOrTiltedKeepTheirHeights) {
       test::Source("samples/parts/occt_trj8_c2-db-214_single_bspline_face.stp"));
   const TopoDS_Face placed =
       geometry::PlaceFace(model.Face(1), Vector3d(0, 90, 0), Vector3d::Zero());
-  const geometry::LinkHeights heights(placed, "trj8 face 1", 3.0, 5.0);
+  const geometry::LinkHeights heights({{placed, "trj8 face 1"}}, 3.0, 5.0);
   const double top = geometry::FaceBox(placed).second.z();
   EXPECT_EQ(heights.TopZ(), top);
   const Vector3d up = Vector3d::UnitZ();

@@ -5,7 +5,10 @@
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepBuilderAPI_MakeWire.hxx>
+#include <BRepExtrema_DistShapeShape.hxx>
+#include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
@@ -19,22 +22,29 @@
 #include <Geom_RectangularTrimmedSurface.hxx>
 #include <Geom_SphericalSurface.hxx>
 #include <Geom_Surface.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <STEPControl_Writer.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
+#include <TopoDS_Compound.hxx>
 #include <TopoDS_Wire.hxx>
 #include <cmath>
+#include <fstream>
 #include <gp_Circ.hxx>
 #include <gp_Pln.hxx>
 #include <numbers>
 #include <random>
+#include <sstream>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/occt_convert.hpp"
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/job.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
 #include "test_support.hpp"
@@ -1191,6 +1201,129 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
       }
     }
   }
+}
+
+// The wavy ruled face cut in two along x = 30 (where u = 1/2), written as a STEP file whose faces
+// are named "left" and "right", as a CAD system names them.
+std::string TwoNamedWavyFaces(const std::string& name) {
+  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
+  TopoDS_Compound both;
+  BRep_Builder builder;
+  builder.MakeCompound(both);
+  for (const auto& [u0, u1] : {std::pair{0.0, 0.5}, std::pair{0.5, 1.0}}) {
+    builder.Add(both, BRepBuilderAPI_MakeFace(wave, u0, u1, 0.0, 1.0, 1e-7).Face());
+  }
+  const std::string unnamed = test::Scratch(name + "_unnamed.stp");
+  // (Quietly: the writer prints its statistics through OpenCASCADE's messenger.)
+  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
+  const Message_SequenceOfPrinters printers = messenger->Printers();
+  messenger->ChangePrinters().Clear();
+  STEPControl_Writer writer;
+  EXPECT_EQ(writer.Transfer(both, STEPControl_AsIs), IFSelect_RetDone);
+  EXPECT_EQ(writer.Write(unnamed.c_str()), IFSelect_RetDone);
+  messenger->ChangePrinters() = printers;
+  std::ostringstream text;
+  text << std::ifstream(unnamed).rdbuf();
+  std::string step = text.str();
+  for (const char* face : {"left", "right"}) {
+    const std::size_t at = step.find("ADVANCED_FACE('',");
+    EXPECT_NE(at, std::string::npos);
+    step.replace(at, 16, fmt::format("ADVANCED_FACE('{}'", face));
+  }
+  const std::string path = test::Scratch(name + ".stp");
+  std::ofstream(path) << step;
+  return path;
+}
+
+// A 3-axis plane_cl job, ball R3, on `face` of the STEP file `step`, read as if from `source`.
+io::Job WavyFacesJob(const std::string& step, const std::string& face, const std::string& source) {
+  return io::ParseJob(
+      fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+face = {}
+[tool]
+kind = "ball_end"
+radius_mm = 3
+[strategy]
+kind = "plane_cl"
+plane_normal = [1, 0, 0]
+direction = [0, 1, 0]
+stepover_mm = 7
+)",
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, face),
+      source);
+}
+
+// A job of two faces (one by name, one by number) finishes both: passes on each, the links
+// between them, and no point of the ball below either face (OpenCASCADE's distance from the
+// ball's centre to the whole uncut face), every limit held.
+TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
+  const std::string step = TwoNamedWavyFaces("two_faces");
+  const StepModel model = StepModel::Load(step);
+  ASSERT_EQ(model.FaceCount(), 2);
+  EXPECT_EQ(model.FaceName(1), "left");
+  EXPECT_EQ(model.FaceName(2), "right");
+  EXPECT_EQ(model.FacesNamed("right"), std::vector<int>{2});
+  EXPECT_EQ(model.Info(2).name, "right");
+  const io::Job job = WavyFacesJob(step, "[\"left\", 2]", test::Scratch("two_faces.toml"));
+  EXPECT_EQ(io::JobFaces(*job.surface, model), (std::vector<int>{1, 2}));
+  EXPECT_EQ(io::DescribeFaces(*job.surface), "faces 'left', 2");
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  EXPECT_TRUE(setup.passes.unreachable.empty());
+  int on_left = 0, on_right = 0;
+  for (const auto& pass : setup.passes.passes) {
+    // Planes x = const, each face's stepped from its own side: passes on one face only.
+    const double x = pass->StartPose().tip.x();
+    EXPECT_TRUE((x > 0.0 && x < 30.0) || (x > 30.0 && x < 60.0)) << x;
+    (x < 30.0 ? on_left : on_right) += 1;
+    EXPECT_GT(*pass->Length(), 60.0) << x;
+  }
+  EXPECT_GE(on_left, 4);
+  EXPECT_GE(on_right, 4);
+
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(r.verify.worst_ratio, 1.0);
+  EXPECT_EQ(r.passes, on_left + on_right);
+  const std::string summary = io::FormatRunSummary(job, r);
+  EXPECT_NE(summary.find("faces 'left', 2"), std::string::npos) << summary;
+  const TopoDS_Face whole = WavyRuledFace();
+  const auto& c = r.table.columns;
+  double closest = INFINITY;
+  bool left_cut = false, right_cut = false;
+  for (std::size_t k = 0; k < c[0].size(); k += 7) {
+    const gp_Pnt centre(c[0][k], c[1][k], c[2][k] + 3.0);
+    BRepExtrema_DistShapeShape d(BRepBuilderAPI_MakeVertex(centre).Vertex(), whole);
+    ASSERT_TRUE(d.IsDone());
+    closest = std::min(closest, d.Value());
+    if (d.Value() < 3.0 + 1e-6) (c[0][k] < 30.0 ? left_cut : right_cut) = true;
+  }
+  EXPECT_GT(closest, 3.0 - 1e-6);
+  EXPECT_TRUE(left_cut);
+  EXPECT_TRUE(right_cut);
+}
+
+// How a job names its faces, and what it is told when they are not there.
+TEST(SurfaceJob, FacesAreGivenByNumberNameOrList) {
+  const std::string step = TwoNamedWavyFaces("face_keys");
+  const StepModel model = StepModel::Load(step);
+  const auto job = [&](const std::string& face) { return WavyFacesJob(step, face, "faces.toml"); };
+  EXPECT_EQ(io::JobFaces(*job("2").surface, model), std::vector<int>{2});
+  EXPECT_EQ(io::JobFaces(*job("\"right\"").surface, model), std::vector<int>{2});
+  EXPECT_EQ(io::JobFaces(*job("[2, 1]").surface, model), (std::vector<int>{2, 1}));
+  test::ExpectError([&] { job("1.5"); }, "faces.toml:5: key 'surface.face'");
+  test::ExpectError([&] { job("[]"); }, "faces.toml:5: key 'surface.face'");
+  test::ExpectError([&] { job("[1, 2.5]"); }, "faces.toml:5: key 'surface.face'");
+  test::ExpectError([&] { job("\"\""); }, "faces.toml:5: key 'surface.face'");
+  test::ExpectError([&] { job("0"); }, "expected a face number from 1");
+  test::ExpectError([&] { io::JobFaces(*job("3").surface, model); },
+                    {"faces.toml:5: key 'surface.face': face 3 does not exist", "faces 1 to 2"});
+  test::ExpectError([&] { io::JobFaces(*job("[\"left\", 1]").surface, model); },
+                    "face 1 of " + step + " is given twice (as 'left' and 1)");
+  test::ExpectError([&] { io::JobFaces(*job("\"top\"").surface, model); },
+                    "has no face named 'top'; its named faces: 'left' (1), 'right' (2)");
 }
 
 TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {

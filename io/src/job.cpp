@@ -1,7 +1,9 @@
 #include "dtis/io/job.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <chrono>
@@ -128,12 +130,19 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   SurfaceSpec spec;
   TomlTable surface = root.Table("surface");
   spec.step_file = ResolveRelative(file, surface.String("file"));
-  const std::int64_t face = surface.OptionalInteger("face").value_or(1);
-  if (face < 1 || face > std::numeric_limits<int>::max()) {
-    surface.Fail("face", fmt::format("expected a face index from 1 to {}, got {}",
-                                     std::numeric_limits<int>::max(), face));
+  if (auto faces = surface.OptionalIndicesOrNames("face")) {
+    spec.faces.clear();
+    for (const IndexOrName& f : *faces) {
+      if (f.name.empty() && (f.index < 1 || f.index > std::numeric_limits<int>::max())) {
+        surface.Fail("face",
+                     fmt::format("expected a face number from 1 to {} or a face name, got {}",
+                                 std::numeric_limits<int>::max(), f.index));
+      }
+      spec.faces.push_back({static_cast<int>(f.index), f.name});
+    }
   }
-  spec.face = static_cast<int>(face);
+  spec.faces_key =
+      fmt::format("{}:{}: key '{}'", file, surface.Line("face"), surface.KeyPath("face"));
   if (auto r = surface.OptionalPoint("rotate_deg")) spec.rotate_deg = *r;
   if (auto t = surface.OptionalPoint("translate_mm")) spec.translate_mm = *t;
   const auto side = surface.OptionalChoice("side", {"auto", "face", "reversed"}).value_or("auto");
@@ -525,17 +534,70 @@ std::vector<double> Lengths(const std::vector<interp::ProgramSegment>& segments)
   return lengths;
 }
 
-std::string FaceName(const SurfaceSpec& spec) {
-  return fmt::format("{} face {}", spec.step_file, spec.face);
+std::string Describe(const FaceRef& f) {
+  return f.name.empty() ? std::to_string(f.index) : fmt::format("'{}'", f.name);
 }
 
-// The job's face, set up on the machine as the job places it.
-TopoDS_Face PlacedFace(const SurfaceSpec& spec) {
+// The job's faces, set up on the machine as the job places them, in its order.
+std::vector<geometry::NamedFace> PlacedFaces(const SurfaceSpec& spec) {
   const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
-  return geometry::PlaceFace(model.Face(spec.face), spec.rotate_deg, spec.translate_mm);
+  std::vector<geometry::NamedFace> faces;
+  for (const int k : JobFaces(spec, model)) {
+    const std::string& name = model.FaceName(k);
+    faces.push_back({geometry::PlaceFace(model.Face(k), spec.rotate_deg, spec.translate_mm),
+                     name.empty() ? fmt::format("{} face {}", spec.step_file, k)
+                                  : fmt::format("{} face {} ('{}')", spec.step_file, k, name)});
+  }
+  return faces;
 }
 
 }  // namespace
+
+std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model) {
+  std::vector<int> faces;
+  std::vector<std::string> given;  // how each was given, for "listed twice"
+  const auto add = [&](int k, const FaceRef& ref) {
+    const auto at = std::find(faces.begin(), faces.end(), k);
+    if (at != faces.end()) {
+      throw Error("{}: face {} of {} is given twice (as {} and {})", spec.faces_key, k,
+                  spec.step_file, given[static_cast<std::size_t>(at - faces.begin())],
+                  Describe(ref));
+    }
+    faces.push_back(k);
+    given.push_back(Describe(ref));
+  };
+  for (const FaceRef& ref : spec.faces) {
+    if (ref.name.empty()) {
+      if (ref.index > model.FaceCount()) {
+        throw Error("{}: face {} does not exist; {} has faces 1 to {} (`dtis faces` lists them)",
+                    spec.faces_key, ref.index, spec.step_file, model.FaceCount());
+      }
+      add(ref.index, ref);
+      continue;
+    }
+    const std::vector<int> named = model.FacesNamed(ref.name);
+    if (named.empty()) {
+      std::vector<std::string> names;
+      for (int k = 1; k <= model.FaceCount(); ++k) {
+        const std::string& n = model.FaceName(k);
+        if (!n.empty() && names.size() < 12) names.push_back(fmt::format("'{}' ({})", n, k));
+      }
+      throw Error("{}: {} has no face named '{}'; {}", spec.faces_key, spec.step_file, ref.name,
+                  names.empty() ? fmt::format("it names none of its {} faces: give their numbers "
+                                              "(`dtis faces {}`)",
+                                              model.FaceCount(), spec.step_file)
+                                : fmt::format("its named faces: {}", fmt::join(names, ", ")));
+    }
+    for (const int k : named) add(k, ref);
+  }
+  return faces;
+}
+
+std::string DescribeFaces(const SurfaceSpec& spec) {
+  std::vector<std::string> parts;
+  for (const FaceRef& f : spec.faces) parts.push_back(Describe(f));
+  return fmt::format("face{} {}", spec.faces.size() == 1 ? "" : "s", fmt::join(parts, ", "));
+}
 
 SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase) {
   const SurfaceSpec& spec = *job.surface;
@@ -543,13 +605,26 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
     throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
   }
   if (phase) phase("reading STEP");
-  const TopoDS_Face placed = PlacedFace(spec);
-  const geometry::FaceSurface face(placed, FaceName(spec));
+  std::vector<geometry::NamedFace> placed = PlacedFaces(spec);
   SurfaceSetup setup;
   if (phase) phase("tracing passes");
-  setup.passes = strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
+  // Face after face, each with the whole strategy; their passes and stretches left out in turn.
+  for (std::size_t k = 0; k < placed.size(); ++k) {
+    const geometry::FaceSurface face(placed[k].face, placed[k].where);
+    strategies::PassList one =
+        strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
+    if (k == 0) {
+      setup.passes.stepover_mm = one.stepover_mm;
+      setup.passes.side = one.side;
+    }
+    for (auto& pass : one.passes) setup.passes.passes.push_back(std::move(pass));
+    for (auto& u : one.unreachable) {
+      if (placed.size() > 1) u.face = placed[k].where;
+      setup.passes.unreachable.push_back(std::move(u));
+    }
+  }
   setup.link_heights = std::make_shared<const geometry::LinkHeights>(
-      placed, FaceName(spec), spec.tool.radius, spec.clearance_mm);
+      std::move(placed), spec.tool.radius, spec.clearance_mm);
   setup.clearance_mm = spec.clearance_mm;
   setup.pass_options = job.vpop;
   setup.link_options = job.vpop;
@@ -561,7 +636,7 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
 
 geometry::FaceMesh MeshJobSurface(const Job& job) {
   if (!job.surface) throw Error("{}: not a surface job: no face to mesh", job.file);
-  return geometry::MeshFace(PlacedFace(*job.surface), FaceName(*job.surface));
+  return geometry::MeshFaces(PlacedFaces(*job.surface));
 }
 
 PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const SurfaceSetup& setup,
@@ -784,8 +859,8 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
       fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name,
                   InterpolatorName(job.interpolator), r.machine->Name(), r.path_length_mm);
   if (job.surface) {
-    out += fmt::format("surface          {} face {}, {}, {}, {}\n", job.surface->step_file,
-                       job.surface->face, job.surface->tool.Describe(),
+    out += fmt::format("surface          {} {}, {}, {}, {}\n", job.surface->step_file,
+                       DescribeFaces(*job.surface), job.surface->tool.Describe(),
                        job.surface->orientation.Describe(),
                        strategies::StrategySpec::KindName(job.surface->strategy.kind));
     out += fmt::format(

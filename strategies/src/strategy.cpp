@@ -931,9 +931,10 @@ std::string PassList::UnreachableText(std::size_t most) const {
   for (std::size_t k = 0; k < unreachable.size() && k < most; ++k) {
     const Unreachable& u = unreachable[k];
     out += fmt::format(
-        "  line {}, {:.6g} mm from ({:.6g}, {:.6g}, {:.6g}) to ({:.6g}, {:.6g}, "
+        "  {}line {}, {:.6g} mm from ({:.6g}, {:.6g}, {:.6g}) to ({:.6g}, {:.6g}, "
         "{:.6g}){}: {}\n",
-        u.line, u.length_mm, u.from.x(), u.from.y(), u.from.z(), u.to.x(), u.to.y(), u.to.z(),
+        u.face.empty() ? "" : u.face + ", ", u.line, u.length_mm, u.from.x(), u.from.y(),
+        u.from.z(), u.to.x(), u.to.y(), u.to.z(),
         u.resumes ? "" : " (the line is not traced past it)", u.why);
   }
   if (unreachable.size() > most) {

@@ -14,6 +14,7 @@
 #include "dtis/geometry/arc_length.hpp"
 #include "dtis/geometry/face_mesh.hpp"
 #include "dtis/geometry/link_height.hpp"
+#include "dtis/geometry/step_model.hpp"
 #include "dtis/geometry/tool.hpp"
 #include "dtis/interp/taylor.hpp"
 #include "dtis/interp/verifier.hpp"
@@ -35,17 +36,27 @@ struct PathSpec {
   Eigen::Vector3d tool_axis = Eigen::Vector3d::UnitZ();
 };
 
-// A surface job (DTIS): a face of a STEP file, a tool, an orientation rule and a strategy.
+// A face of a STEP file: by the number `dtis faces` gives it, or by the name the file gives it.
+struct FaceRef {
+  int index = 0;     // 1-based; 0 when named
+  std::string name;  // a name stands for every face the file gives it
+};
+
+// A surface job (DTIS): faces of a STEP file, a tool, an orientation rule and a strategy.
 struct SurfaceSpec {
   std::string step_file;  // resolved
-  int face = 1;
+  // The faces finished, in this order: each face's passes, then the next face's.
+  std::vector<FaceRef> faces{FaceRef{1, {}}};
+  // "job.toml:3: key 'surface.face'": where the faces were given, for what only the STEP file
+  // shows wrong (a name no face has).
+  std::string faces_key;
   // Set-up: the part rotated about X, then Y, then Z (degrees), then moved (mm).
   Eigen::Vector3d rotate_deg = Eigen::Vector3d::Zero();
   Eigen::Vector3d translate_mm = Eigen::Vector3d::Zero();
   geometry::Tool tool;
   strategies::Orientation orientation;
   strategies::StrategySpec strategy;
-  double clearance_mm = 5.0;    // links retract to this height above the face's highest point
+  double clearance_mm = 5.0;    // links clear the faces by this (geometry/link_height.hpp)
   double link_feed_mm_s = 0.0;  // 0: the job's feed
 };
 
@@ -175,7 +186,12 @@ struct SurfaceSetup {
 };
 // `phase`, if given, is called as the STEP file is read and as the passes are traced.
 SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase = {});
-// A surface job's face as triangles, placed as the job places it (for reports).
+// The faces a surface job names, as numbers of its STEP file's faces, in the job's order. Throws
+// dtis::Error naming the job's key for a name no face has or a face given twice.
+std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model);
+// "face 3", "faces 3, 'floor' (1, 4)": the job's faces as it gives them.
+std::string DescribeFaces(const SurfaceSpec& spec);
+// A surface job's faces as triangles, placed as the job places them (for reports).
 geometry::FaceMesh MeshJobSurface(const Job& job);
 
 struct PassProgram {

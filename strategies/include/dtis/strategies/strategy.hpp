@@ -66,6 +66,7 @@ struct Unreachable {
   double length_mm = 0.0;  // of the line on the face (the contact point's path) left out
   bool resumes = false;    // false: the line is not finished past it
   std::string why;         // the first reason met on it
+  std::string face;        // which face, when a job finishes several ("" otherwise)
 };
 
 struct PassList {
