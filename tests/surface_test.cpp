@@ -5,6 +5,7 @@
 
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakePolygon.hxx>
 #include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepBuilderAPI_MakeWire.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
@@ -1203,57 +1204,70 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   }
 }
 
-// The wavy ruled face cut in two along x = 30 (where u = 1/2), written as a STEP file whose faces
-// are named "left" and "right", as a CAD system names them.
-std::string TwoNamedWavyFaces(const std::string& name) {
-  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
-  TopoDS_Compound both;
+// `faces` written as a STEP file named `name`.stp in the scratch folder, each face named as given,
+// as a CAD system names them.
+std::string WriteNamedFaces(const std::string& name,
+                            const std::vector<std::pair<TopoDS_Face, std::string>>& faces) {
+  TopoDS_Compound all;
   BRep_Builder builder;
-  builder.MakeCompound(both);
-  for (const auto& [u0, u1] : {std::pair{0.0, 0.5}, std::pair{0.5, 1.0}}) {
-    builder.Add(both, BRepBuilderAPI_MakeFace(wave, u0, u1, 0.0, 1.0, 1e-7).Face());
-  }
+  builder.MakeCompound(all);
+  for (const auto& f : faces) builder.Add(all, f.first);
   const std::string unnamed = test::Scratch(name + "_unnamed.stp");
   // (Quietly: the writer prints its statistics through OpenCASCADE's messenger.)
   const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
   const Message_SequenceOfPrinters printers = messenger->Printers();
   messenger->ChangePrinters().Clear();
   STEPControl_Writer writer;
-  EXPECT_EQ(writer.Transfer(both, STEPControl_AsIs), IFSelect_RetDone);
+  EXPECT_EQ(writer.Transfer(all, STEPControl_AsIs), IFSelect_RetDone);
   EXPECT_EQ(writer.Write(unnamed.c_str()), IFSelect_RetDone);
   messenger->ChangePrinters() = printers;
   std::ostringstream text;
   text << std::ifstream(unnamed).rdbuf();
   std::string step = text.str();
-  for (const char* face : {"left", "right"}) {
+  for (const auto& f : faces) {
     const std::size_t at = step.find("ADVANCED_FACE('',");
     EXPECT_NE(at, std::string::npos);
-    step.replace(at, 16, fmt::format("ADVANCED_FACE('{}'", face));
+    step.replace(at, 16, fmt::format("ADVANCED_FACE('{}'", f.second));
   }
   const std::string path = test::Scratch(name + ".stp");
   std::ofstream(path) << step;
   return path;
 }
 
-// A 3-axis plane_cl job, ball R3, on `face` of the STEP file `step`, read as if from `source`.
-io::Job WavyFacesJob(const std::string& step, const std::string& face, const std::string& source) {
+// The wavy ruled face cut in two along x = 30 (where u = 1/2), as faces "left" and "right".
+std::string TwoNamedWavyFaces(const std::string& name) {
+  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
+  return WriteNamedFaces(
+      name, {{BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face(), "left"},
+             {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "right"}});
+}
+
+// A 3-axis plane_cl job, ball R3, on the STEP file `step`: `surface` gives the face (and more of
+// [surface]), `planes` the strategy's plane_normal, direction and stepover; read as if from
+// `source`.
+io::Job BallJob(const std::string& step, const std::string& surface, const std::string& planes,
+                const std::string& source) {
   return io::ParseJob(
       fmt::format(R"(machine = "{}"
 feed_mm_min = 3000
 [surface]
 file = "{}"
-face = {}
+{}
 [tool]
 kind = "ball_end"
 radius_mm = 3
 [strategy]
 kind = "plane_cl"
-plane_normal = [1, 0, 0]
-direction = [0, 1, 0]
-stepover_mm = 7
+{}
 )",
-                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, face),
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, surface, planes),
       source);
+}
+
+// The wavy faces' jobs: planes x = const, travelling along +Y, 7 mm apart.
+io::Job WavyFacesJob(const std::string& step, const std::string& face, const std::string& source) {
+  return BallJob(step, "face = " + face,
+                 "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 7", source);
 }
 
 // A job of two faces (one by name, one by number) finishes both: passes on each, the links
@@ -1324,6 +1338,114 @@ TEST(SurfaceJob, FacesAreGivenByNumberNameOrList) {
                     "face 1 of " + step + " is given twice (as 'left' and 1)");
   test::ExpectError([&] { io::JobFaces(*job("\"top\"").surface, model); },
                     "has no face named 'top'; its named faces: 'left' (1), 'right' (2)");
+}
+
+// The distance to a tool in closed form: a ball R3 is a sphere about the point 3 mm up its axis, a
+// bull nose R5 r1 has its corner's circle of centres at rho = 4, z = 1; inside is negative.
+TEST(CheckFaces, DistanceToTheToolInClosedForm) {
+  const Tool ball = Ball(3.0), bull = Torus(Tool::Kind::kBullNose, 5.0, 1.0);
+  const Tool flat = Torus(Tool::Kind::kFlatEnd, 4.0, 0.0);
+  EXPECT_NEAR(geometry::ToolSignedDistance(ball, INFINITY, 0.0, -1.0), 1.0, 1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(ball, INFINITY, 4.0, 0.0), 2.0, 1e-15);  // 5 - 3
+  EXPECT_NEAR(geometry::ToolSignedDistance(ball, INFINITY, 0.0, 0.5), -0.5, 1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(ball, INFINITY, 3.5, 40.0), 0.5, 1e-15);  // the shank
+  EXPECT_NEAR(geometry::ToolSignedDistance(ball, 10.0, 0.0, 12.0), 2.0, 1e-15);      // above it
+  EXPECT_NEAR(geometry::ToolSignedDistance(bull, INFINITY, 5.5, 0.5), std::hypot(1.5, 0.5) - 1.0,
+              1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(bull, INFINITY, 2.0, -0.25), 0.25, 1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(bull, INFINITY, 2.0, 0.25), -0.25, 1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(flat, INFINITY, 5.0, 2.0), 1.0, 1e-15);
+  EXPECT_NEAR(geometry::ToolSignedDistance(flat, INFINITY, 6.0, -2.0), std::hypot(2.0, 2.0), 1e-15);
+  EXPECT_LT(geometry::ToolSignedDistance(flat, INFINITY, 3.9, 0.05), 0.0);
+}
+
+// A floor (the left half of the wavy face) with a wall standing at its edge, x = 30: plane_cl
+// passes towards the wall stop where the ball would go into it, 3 mm short (the tip at x = 27),
+// the stretch reported; without the check they run on to the floor's edge. Every setpoint of the
+// planned job keeps the ball out of the wall by OpenCASCADE's distance from its centre, to the
+// check's tolerance.
+TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
+  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
+  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face();
+  BRepBuilderAPI_MakePolygon outline(gp_Pnt(30, -1, -5), gp_Pnt(30, 61, -5), gp_Pnt(30, 61, 20),
+                                     gp_Pnt(30, -1, 20), Standard_True);
+  const TopoDS_Face wall = BRepBuilderAPI_MakeFace(outline.Wire(), Standard_True).Face();
+  const std::string step = WriteNamedFaces("wall", {{floor, "floor"}, {wall, "wall"}});
+  const auto job = [&](const std::string& check) {
+    return BallJob(step, "face = \"floor\"\n" + check,
+                   "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 9",
+                   test::Scratch("wall.toml"));
+  };
+  const io::Job checked = job("");
+  const io::SurfaceSetup setup = io::SetUpSurface(checked, nullptr);
+  ASSERT_GE(setup.passes.passes.size(), 6u);
+  ASSERT_EQ(setup.passes.unreachable.size(), setup.passes.passes.size());
+  for (const auto& u : setup.passes.unreachable) {
+    EXPECT_NE(u.why.find("the tool goes into"), std::string::npos) << u.why;
+    EXPECT_NE(u.why.find("face 2 ('wall')"), std::string::npos) << u.why;
+  }
+  const double tol = checked.surface->check_tolerance_mm;
+  for (const auto& pass : setup.passes.passes) {
+    const double end = pass->EndPose().tip.x();
+    EXPECT_LE(end, 27.0 + tol) << pass->StartPose().tip.y();
+    EXPECT_GE(end, 27.0 - 1e-3) << pass->StartPose().tip.y();
+  }
+  const io::SurfaceSetup unchecked = io::SetUpSurface(job("check_faces = \"none\""), nullptr);
+  EXPECT_TRUE(unchecked.passes.unreachable.empty());
+  for (const auto& pass : unchecked.passes.passes) EXPECT_GT(pass->EndPose().tip.x(), 29.0);
+  // The same, with the wall named.
+  EXPECT_EQ(io::SetUpSurface(job("check_faces = \"wall\""), nullptr).passes.passes.size(),
+            setup.passes.passes.size());
+  test::ExpectError(
+      [&] { io::SetUpSurface(job("check_faces = [\"floor\"]"), nullptr); },
+      {"wall.toml:6: key 'surface.check_faces': face 1 of", "is finished by the job"});
+
+  const io::RunResult r = io::RunJob(checked);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  const auto& c = r.table.columns;
+  double closest = INFINITY;
+  for (std::size_t k = 0; k < c[0].size(); k += 5) {
+    const gp_Pnt centre(c[0][k], c[1][k], c[2][k] + 3.0);
+    BRepExtrema_DistShapeShape d(BRepBuilderAPI_MakeVertex(centre).Vertex(), wall);
+    ASSERT_TRUE(d.IsDone());
+    closest = std::min(closest, d.Value());
+  }
+  EXPECT_GE(closest, 3.0 - tol);
+  EXPECT_LT(closest, 3.0 + 0.01);  // and it came to the wall
+}
+
+// A part larger than the machine's travel is finished in parts: with bounds, passes start and end
+// where the tip reaches the box's sides (to the trace's bisection, 0.1 mm / 4096), and what lies
+// outside is not reported as unreachable.
+TEST(SurfacePass, BoundsEndThePassesWhereTheTipReachesTheirSides) {
+  const TopoDS_Face face = WavyRuledFace();
+  const FaceSurface surface(face, "wavy");
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kPlaneCl;
+  spec.plane_normal = Eigen::Vector3d::UnitX();
+  spec.direction = Eigen::Vector3d::UnitY();
+  spec.stepover_mm = 10.0;
+  const auto whole = strategies::BuildPasses(surface, Ball(3.0), Orientation{}, spec);
+  spec.bounds = StrategySpec::Bounds{Eigen::Vector3d(-INFINITY, 20.0, -INFINITY),
+                                     Eigen::Vector3d(INFINITY, 40.0, INFINITY)};
+  const auto part = strategies::BuildPasses(surface, Ball(3.0), Orientation{}, spec);
+  ASSERT_EQ(part.passes.size(), whole.passes.size());
+  EXPECT_TRUE(part.unreachable.empty());
+  constexpr double kBisection = 0.1 / 4096.0;
+  for (const auto& pass : part.passes) {
+    const double start = pass->StartPose().tip.y(), end = pass->EndPose().tip.y();
+    EXPECT_GE(start, 20.0);
+    EXPECT_LE(start, 20.0 + kBisection);
+    EXPECT_LE(end, 40.0);
+    EXPECT_GE(end, 40.0 - kBisection);
+    // The planner's march ends there too, to the Newton tolerance (1e-6 mm).
+    EXPECT_NEAR(pass->At(pass->Start(), *pass->Length()).pose.tip.y(), end, 1e-6);
+  }
+  spec.bounds->min.y() = 100.0;
+  spec.bounds->max.y() = 200.0;
+  test::ExpectError([&] { strategies::BuildPasses(surface, Ball(3.0), Orientation{}, spec); },
+                    {"wavy: no pass of the plane_cl strategy keeps the tool tip within its bounds",
+                     "the face spans"});
 }
 
 TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {

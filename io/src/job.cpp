@@ -126,23 +126,42 @@ Eigen::Vector3d UnitVector(TomlTable& t, std::string_view key) {
   return v.normalized();
 }
 
+// Faces by number or name (a number, a name, or a list of them), if `key` is there.
+std::optional<std::vector<FaceRef>> ReadFaceRefs(TomlTable& table, std::string_view key) {
+  const auto given = table.OptionalIndicesOrNames(key);
+  if (!given) return std::nullopt;
+  std::vector<FaceRef> faces;
+  for (const IndexOrName& f : *given) {
+    if (f.name.empty() && (f.index < 1 || f.index > std::numeric_limits<int>::max())) {
+      table.Fail(key, fmt::format("expected a face number from 1 to {} or a face name, got {}",
+                                  std::numeric_limits<int>::max(), f.index));
+    }
+    faces.push_back({static_cast<int>(f.index), f.name});
+  }
+  return faces;
+}
+
 SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   SurfaceSpec spec;
   TomlTable surface = root.Table("surface");
   spec.step_file = ResolveRelative(file, surface.String("file"));
-  if (auto faces = surface.OptionalIndicesOrNames("face")) {
-    spec.faces.clear();
-    for (const IndexOrName& f : *faces) {
-      if (f.name.empty() && (f.index < 1 || f.index > std::numeric_limits<int>::max())) {
-        surface.Fail("face",
-                     fmt::format("expected a face number from 1 to {} or a face name, got {}",
-                                 std::numeric_limits<int>::max(), f.index));
-      }
-      spec.faces.push_back({static_cast<int>(f.index), f.name});
-    }
-  }
+  if (auto faces = ReadFaceRefs(surface, "face")) spec.faces = std::move(*faces);
   spec.faces_key =
       fmt::format("{}:{}: key '{}'", file, surface.Line("face"), surface.KeyPath("face"));
+  if (auto check = ReadFaceRefs(surface, "check_faces")) {
+    const bool word = check->size() == 1 && check->front().index == 0;
+    if (word && check->front().name == "none") {
+      spec.check_faces.emplace();
+    } else if (!(word && check->front().name == "others")) {
+      spec.check_faces = std::move(*check);
+    }
+  }
+  spec.check_faces_key = fmt::format("{}:{}: key '{}'", file, surface.Line("check_faces"),
+                                     surface.KeyPath("check_faces"));
+  if (auto t = surface.OptionalNumber("check_tolerance_mm")) {
+    if (!(*t >= 0.0)) surface.Fail("check_tolerance_mm", "expected a number of mm >= 0");
+    spec.check_tolerance_mm = *t;
+  }
   if (auto r = surface.OptionalPoint("rotate_deg")) spec.rotate_deg = *r;
   if (auto t = surface.OptionalPoint("translate_mm")) spec.translate_mm = *t;
   const auto side = surface.OptionalChoice("side", {"auto", "face", "reversed"}).value_or("auto");
@@ -155,6 +174,7 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   TomlTable tool = root.Table("tool");
   const auto kind = tool.Choice("kind", {"ball_end", "bull_nose", "flat_end"});
   spec.tool.radius = tool.PositiveNumber("radius_mm");
+  if (auto l = tool.OptionalPositiveNumber("length_mm")) spec.tool_length_mm = *l;
   if (kind == "ball_end") {
     spec.tool.kind = geometry::Tool::Kind::kBallEnd;
     spec.tool.corner_radius = spec.tool.radius;
@@ -237,6 +257,19 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
       st.Fail("range", "expected [first, last] with first <= last");
     }
     s.range = std::array<double, 2>{r[0], r[1]};
+  }
+  const auto bounds_min = st.OptionalPoint("bounds_min_mm");
+  const auto bounds_max = st.OptionalPoint("bounds_max_mm");
+  if (bounds_min || bounds_max) {
+    s.bounds = {bounds_min.value_or(Eigen::Vector3d::Constant(-INFINITY)),
+                bounds_max.value_or(Eigen::Vector3d::Constant(INFINITY))};
+    if (!(s.bounds->min.array() < s.bounds->max.array()).all()) {
+      st.Fail(bounds_max ? "bounds_max_mm" : "bounds_min_mm",
+              fmt::format("expected bounds_min_mm below bounds_max_mm in x, y and z, got ({}, {}, "
+                          "{}) to ({}, {}, {})",
+                          s.bounds->min.x(), s.bounds->min.y(), s.bounds->min.z(),
+                          s.bounds->max.x(), s.bounds->max.y(), s.bounds->max.z()));
+    }
   }
   if (auto m = st.OptionalInteger("max_passes")) {
     if (*m < 1 || *m > std::numeric_limits<int>::max()) {
@@ -538,11 +571,11 @@ std::string Describe(const FaceRef& f) {
   return f.name.empty() ? std::to_string(f.index) : fmt::format("'{}'", f.name);
 }
 
-// The job's faces, set up on the machine as the job places them, in its order.
-std::vector<geometry::NamedFace> PlacedFaces(const SurfaceSpec& spec) {
-  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
+// Faces of the model, set up on the machine as the job places them, in this order.
+std::vector<geometry::NamedFace> Placed(const SurfaceSpec& spec, const geometry::StepModel& model,
+                                        const std::vector<int>& indices) {
   std::vector<geometry::NamedFace> faces;
-  for (const int k : JobFaces(spec, model)) {
+  for (const int k : indices) {
     const std::string& name = model.FaceName(k);
     faces.push_back({geometry::PlaceFace(model.Face(k), spec.rotate_deg, spec.translate_mm),
                      name.empty() ? fmt::format("{} face {}", spec.step_file, k)
@@ -551,26 +584,31 @@ std::vector<geometry::NamedFace> PlacedFaces(const SurfaceSpec& spec) {
   return faces;
 }
 
-}  // namespace
+// The job's faces, placed.
+std::vector<geometry::NamedFace> PlacedFaces(const SurfaceSpec& spec) {
+  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
+  return Placed(spec, model, JobFaces(spec, model));
+}
 
-std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model) {
+// The faces `refs` name in the model, in their order; `key` says where they were given.
+std::vector<int> ResolveFaces(const std::vector<FaceRef>& refs, const std::string& key,
+                              const SurfaceSpec& spec, const geometry::StepModel& model) {
   std::vector<int> faces;
   std::vector<std::string> given;  // how each was given, for "listed twice"
   const auto add = [&](int k, const FaceRef& ref) {
     const auto at = std::find(faces.begin(), faces.end(), k);
     if (at != faces.end()) {
-      throw Error("{}: face {} of {} is given twice (as {} and {})", spec.faces_key, k,
-                  spec.step_file, given[static_cast<std::size_t>(at - faces.begin())],
-                  Describe(ref));
+      throw Error("{}: face {} of {} is given twice (as {} and {})", key, k, spec.step_file,
+                  given[static_cast<std::size_t>(at - faces.begin())], Describe(ref));
     }
     faces.push_back(k);
     given.push_back(Describe(ref));
   };
-  for (const FaceRef& ref : spec.faces) {
+  for (const FaceRef& ref : refs) {
     if (ref.name.empty()) {
       if (ref.index > model.FaceCount()) {
         throw Error("{}: face {} does not exist; {} has faces 1 to {} (`dtis faces` lists them)",
-                    spec.faces_key, ref.index, spec.step_file, model.FaceCount());
+                    key, ref.index, spec.step_file, model.FaceCount());
       }
       add(ref.index, ref);
       continue;
@@ -582,7 +620,7 @@ std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& mo
         const std::string& n = model.FaceName(k);
         if (!n.empty() && names.size() < 12) names.push_back(fmt::format("'{}' ({})", n, k));
       }
-      throw Error("{}: {} has no face named '{}'; {}", spec.faces_key, spec.step_file, ref.name,
+      throw Error("{}: {} has no face named '{}'; {}", key, spec.step_file, ref.name,
                   names.empty() ? fmt::format("it names none of its {} faces: give their numbers "
                                               "(`dtis faces {}`)",
                                               model.FaceCount(), spec.step_file)
@@ -591,6 +629,34 @@ std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& mo
     for (const int k : named) add(k, ref);
   }
   return faces;
+}
+
+}  // namespace
+
+std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model) {
+  return ResolveFaces(spec.faces, spec.faces_key, spec, model);
+}
+
+std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepModel& model) {
+  const std::vector<int> finished = JobFaces(spec, model);
+  const auto is_finished = [&](int k) {
+    return std::find(finished.begin(), finished.end(), k) != finished.end();
+  };
+  std::vector<int> check;
+  if (!spec.check_faces) {
+    for (int k = 1; k <= model.FaceCount(); ++k) {
+      if (!is_finished(k)) check.push_back(k);
+    }
+    return check;
+  }
+  check = ResolveFaces(*spec.check_faces, spec.check_faces_key, spec, model);
+  for (const int k : check) {
+    if (is_finished(k)) {
+      throw Error("{}: face {} of {} is finished by the job ({}); check the faces besides it",
+                  spec.check_faces_key, k, spec.step_file, DescribeFaces(spec));
+    }
+  }
+  return check;
 }
 
 std::string DescribeFaces(const SurfaceSpec& spec) {
@@ -605,14 +671,25 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
     throw Error("{}: surface jobs run with the VPOp interpolator only", job.file);
   }
   if (phase) phase("reading STEP");
-  std::vector<geometry::NamedFace> placed = PlacedFaces(spec);
+  const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
+  std::vector<geometry::NamedFace> placed = Placed(spec, model, JobFaces(spec, model));
+  std::vector<geometry::NamedFace> others = Placed(spec, model, CheckFaceIndices(spec, model));
   SurfaceSetup setup;
   if (phase) phase("tracing passes");
   // Face after face, each with the whole strategy; their passes and stretches left out in turn.
+  // The tool finishing one face must not go into the checked faces, nor into the job's others.
   for (std::size_t k = 0; k < placed.size(); ++k) {
+    strategies::StrategySpec strategy = spec.strategy;
+    std::vector<geometry::NamedFace> check = others;
+    for (std::size_t i = 0; i < placed.size(); ++i) {
+      if (i != k) check.push_back(placed[i]);
+    }
+    if (!check.empty()) {
+      strategy.check = std::make_shared<const geometry::CheckFaces>(
+          std::move(check), spec.tool, spec.tool_length_mm, spec.check_tolerance_mm);
+    }
     const geometry::FaceSurface face(placed[k].face, placed[k].where);
-    strategies::PassList one =
-        strategies::BuildPasses(face, spec.tool, spec.orientation, spec.strategy);
+    strategies::PassList one = strategies::BuildPasses(face, spec.tool, spec.orientation, strategy);
     if (k == 0) {
       setup.passes.stepover_mm = one.stepover_mm;
       setup.passes.side = one.side;
@@ -623,6 +700,8 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
       setup.passes.unreachable.push_back(std::move(u));
     }
   }
+  // Links clear the checked faces too.
+  for (auto& f : others) placed.push_back(std::move(f));
   setup.link_heights = std::make_shared<const geometry::LinkHeights>(
       std::move(placed), spec.tool.radius, spec.clearance_mm);
   setup.clearance_mm = spec.clearance_mm;

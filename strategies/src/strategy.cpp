@@ -28,6 +28,7 @@ struct Gap {
   bool resumes = false;
   double contact_mm = 0.0;  // of the contact point's path on the face through it
   std::string why;
+  bool outside_bounds = false;  // the tip leaves the job's bounds: not reported as unreachable
 };
 
 struct Candidate {
@@ -112,8 +113,10 @@ class Builder {
       bool open = true;
       for (const Gap& g : c.gaps) {
         piece(from, s0, g.before, g.s_begin);
-        list.unreachable.push_back(
-            {c.line + 1, g.before.p, g.after.p, g.contact_mm, g.resumes, g.why});
+        if (!g.outside_bounds) {
+          list.unreachable.push_back(
+              {c.line + 1, g.before.p, g.after.p, g.contact_mm, g.resumes, g.why, {}});
+        }
         if (!g.resumes) {
           open = false;
           break;
@@ -122,6 +125,16 @@ class Builder {
         s0 = g.s_end;
       }
       if (open) piece(from, s0, c.end, c.length);
+    }
+    if (list.passes.empty() && list.unreachable.empty()) {
+      const Eigen::Vector3d& lo = spec_.bounds->min;
+      const Eigen::Vector3d& hi = spec_.bounds->max;
+      const auto [face_lo, face_hi] = geometry::FaceBox(face_.Face());
+      throw Error(
+          "{}: no pass of the {} strategy keeps the tool tip within its bounds, ({}, {}, {}) to "
+          "({}, {}, {}) mm; the face spans ({:.6g}, {:.6g}, {:.6g}) to ({:.6g}, {:.6g}, {:.6g}) mm",
+          face_.Where(), StrategySpec::KindName(spec_.kind), lo.x(), lo.y(), lo.z(), hi.x(), hi.y(),
+          hi.z(), face_lo.x(), face_lo.y(), face_lo.z(), face_hi.x(), face_hi.y(), face_hi.z());
     }
     if (list.passes.empty()) {
       const Unreachable& u = list.unreachable.front();
@@ -394,11 +407,12 @@ class Builder {
     std::optional<Gap> gap;   // the one the trace is in
     Eigen::Vector2d gap_dir;  // the march's direction in (u, v) inside it
     std::string why;          // the last reason the tool did not fit
-    // Whether the tool fits at p (arc length at); refuses the job unless gaps are skipped.
+    // Whether the tool fits at p (arc length at); refuses the job unless gaps are skipped (or
+    // the tip is only out of the job's bounds).
     const auto fits = [&](const ContactPoint& p, double at) {
-      const std::optional<std::string> w = GougeAt(p);
+      const std::optional<std::string> w = UnfitAt(p);
       if (!w) return true;
-      if (!skip) Fail(cand->line, cand->constraint, at, p.uv, *w);
+      if (!skip && *w != kOutsideBounds) Fail(cand->line, cand->constraint, at, p.uv, *w);
       why = *w;
       return false;
     };
@@ -416,7 +430,7 @@ class Builder {
       for (int k = 0; k < 12; ++k) {
         const double mid = 0.5 * (lo + hi);
         const bool ok = step(mid, &p);
-        if (ok && GougeAt(p).has_value() != fits_from) {
+        if (ok && UnfitAt(p).has_value() != fits_from) {
           lo = mid, p_lo = p;
         } else {
           hi = mid, p_hi = p, have_hi = ok;
@@ -446,6 +460,7 @@ class Builder {
       gap->before = p;
       gap->s_begin = at;
       gap->why = why;
+      gap->outside_bounds = why == kOutsideBounds;
       gap_dir = p.duv.norm() > 0.0 ? Eigen::Vector2d(p.duv.normalized()) : Eigen::Vector2d::Zero();
     };
     const auto close_gap = [&](const ContactPoint& p, double at, bool resumes) {
@@ -745,6 +760,14 @@ class Builder {
     return true;
   }
 
+  static constexpr const char* kOutsideBounds = "the tool tip leaves the strategy's bounds";
+
+  // Why the tool may not be at p: its tip out of the strategy's bounds, or GougeAt.
+  std::optional<std::string> UnfitAt(const ContactPoint& p) const {
+    if (spec_.bounds && !spec_.bounds->Contain(p.tip)) return kOutsideBounds;
+    return GougeAt(p);
+  }
+
   // Why the tool does not fit touching the face at p (it would touch with its upper side, or go
   // into the face), or nothing.
   std::optional<std::string> GougeAt(const ContactPoint& p) const {
@@ -772,6 +795,15 @@ class Builder {
           tool_.kind == geometry::Tool::Kind::kBallEnd
               ? ": use a smaller ball"
               : ": a flat bottom cannot follow a valley; use a ball end");
+    }
+    if (spec_.check) {
+      if (const auto hit = spec_.check->Into(p.tip, p.axis)) {
+        return fmt::format(
+            "the tool goes into {}: {:.3g} mm deep at ({:.6g}, {:.6g}, {:.6g}), (u, v) = ({:.9g}, "
+            "{:.9g}) on that face",
+            hit->where, hit->depth_mm, hit->at.x(), hit->at.y(), hit->at.z(), hit->uv.x(),
+            hit->uv.y());
+      }
     }
     return std::nullopt;
   }

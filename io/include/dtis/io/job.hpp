@@ -3,6 +3,7 @@
 // See samples/jobs/ and the README for every key.
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -50,6 +51,13 @@ struct SurfaceSpec {
   // "job.toml:3: key 'surface.face'": where the faces were given, for what only the STEP file
   // shows wrong (a name no face has).
   std::string faces_key;
+  // The faces the tool must not go into besides those it finishes: every other face of the
+  // file (nullopt, `check_faces = "others"`), none (empty), or these.
+  std::optional<std::vector<FaceRef>> check_faces;
+  std::string check_faces_key;
+  double check_tolerance_mm = 1e-3;  // how far a checked face may lie inside the tool
+  // The tool's reach up its axis from the tip, holder included, checked against those faces.
+  double tool_length_mm = INFINITY;
   // Set-up: the part rotated about X, then Y, then Z (degrees), then moved (mm).
   Eigen::Vector3d rotate_deg = Eigen::Vector3d::Zero();
   Eigen::Vector3d translate_mm = Eigen::Vector3d::Zero();
@@ -189,6 +197,9 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
 // The faces a surface job names, as numbers of its STEP file's faces, in the job's order. Throws
 // dtis::Error naming the job's key for a name no face has or a face given twice.
 std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model);
+// The faces the tool must not go into besides the job's (check_faces), as numbers. Throws
+// dtis::Error naming the key for a face the job also finishes.
+std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepModel& model);
 // "face 3", "faces 3, 'floor' (1, 4)": the job's faces as it gives them.
 std::string DescribeFaces(const SurfaceSpec& spec);
 // A surface job's faces as triangles, placed as the job places them (for reports).

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "dtis/geometry/check_faces.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/tool.hpp"
 #include "dtis/strategies/orientation.hpp"
@@ -50,8 +51,21 @@ struct StrategySpec {
   // uv. Without it the lines cover the face, half a stepover in from its extremes.
   std::optional<std::array<double, 2>> range;
   int max_passes = 0;  // 0: all
+  // The box (mm, in the workpiece frame) the tool tip stays in: passes end where the tip reaches
+  // a side of it (a part larger than the machine's travel, finished in parts). Unbounded when
+  // unset; a side may be infinite.
+  struct Bounds {
+    Eigen::Vector3d min, max;
+    bool Contain(const Eigen::Vector3d& p) const {
+      return (p.array() >= min.array()).all() && (p.array() <= max.array()).all();
+    }
+  };
+  std::optional<Bounds> bounds;
   Side side = Side::kAuto;
   OnGouge on_gouge = OnGouge::kSkip;
+  // Faces the tool must not go into besides the one it finishes (the part's others): where it
+  // would, the tool does not fit, as where it gouges its own face. None when null.
+  std::shared_ptr<const geometry::CheckFaces> check;
   NewtonOptions newton;
 
   static const char* KindName(Kind kind);

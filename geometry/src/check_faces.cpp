@@ -1,0 +1,287 @@
+#include "dtis/geometry/check_faces.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "dtis/geometry/face_surface.hpp"
+
+namespace dtis::geometry {
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+// Samples per side of a block, whose box decides whether its samples are looked at.
+constexpr int kBlock = 16;
+// Samples per face, at most: past this the spacing grows.
+constexpr double kMaxSamples = 4e6;
+
+// The distance to the tool in its half-plane (rho >= 0, z), and that distance's gradient there.
+struct Profile {
+  double d;
+  Vector2d grad;  // (d/drho, d/dz)
+};
+
+Profile ToolProfile(const Tool& tool, double length, double rho, double z) {
+  const double r = tool.corner_radius, big_r = tool.TorusRadius(), outer = tool.radius;
+  // The bottom: the segment (0..R, z = r) widened by r.
+  const Vector2d foot(std::clamp(rho, 0.0, big_r), r);
+  Vector2d away = Vector2d(rho, z) - foot;
+  const double to_foot = away.norm();
+  Profile bottom{to_foot - r, to_foot > 0.0 ? Vector2d(away / to_foot) : Vector2d(0.0, -1.0)};
+  // The body: |rho| <= R + r, r <= z <= length (the half-plane's mirror makes rho = 0 inside).
+  const double dx = rho - outer;
+  const double dz = std::max(r - z, z - length);
+  const double sz = z < 0.5 * (r + length) ? -1.0 : 1.0;  // which end dz measures to
+  Profile body;
+  if (dx > 0.0 || dz > 0.0) {
+    const Vector2d out(std::max(dx, 0.0), sz * std::max(dz, 0.0));
+    body = {out.norm(), out.normalized()};
+  } else if (dx > dz) {
+    body = {dx, Vector2d(1.0, 0.0)};
+  } else {
+    body = {dz, Vector2d(0.0, sz)};
+  }
+  if (!(length > r)) return bottom;  // (a tool shorter than its corner: the bottom alone)
+  return bottom.d < body.d ? bottom : body;
+}
+
+// The point q relative to the tool: its distance and (3D) gradient.
+struct ToolDistance {
+  double d;
+  Vector3d grad;
+};
+
+ToolDistance Measure(const Tool& tool, double length, const Vector3d& tip, const Vector3d& axis,
+                     const Vector3d& q) {
+  const Vector3d rel = q - tip;
+  const double z = rel.dot(axis);
+  const Vector3d across = rel - z * axis;
+  const double rho = across.norm();
+  const Profile p = ToolProfile(tool, length, rho, z);
+  const Vector3d out = rho > 0.0 ? Vector3d(across / rho) : Vector3d::Zero();
+  return {p.d, p.grad.x() * out + p.grad.y() * axis};
+}
+
+struct Box {
+  Vector3d lo = Vector3d::Constant(INFINITY), hi = Vector3d::Constant(-INFINITY);
+  void Add(const Vector3d& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  bool Empty() const { return !(lo.x() <= hi.x()); }
+};
+
+}  // namespace
+
+double ToolSignedDistance(const Tool& tool, double length, double rho, double z) {
+  return ToolProfile(tool, length, std::abs(rho), z).d;
+}
+
+// A face's samples: a grid in (u, v), row-major (u by v), with whether each lies on the face.
+struct CheckFaces::Sampled {
+  int nu = 0, nv = 0;
+  std::vector<Vector3d> p;
+  std::vector<Vector2d> uv;
+  std::vector<std::uint8_t> on;
+  double cover = 0.0;  // every point of the face lies within this of a sample (mm)
+  struct Block {
+    int i0, i1, j0, j1;  // samples [i0, i1) x [j0, j1)
+    Vector3d centre;
+    double half_diagonal;
+  };
+  std::vector<Block> blocks;
+};
+
+struct CheckFaces::Face {
+  NamedFace named;
+  Box box;  // the face's, widened by nothing
+  mutable std::once_flag once;
+  mutable std::unique_ptr<Sampled> samples;
+  mutable std::mutex eval_mutex;  // guards `surface` (its evaluation cache)
+  mutable std::unique_ptr<FaceSurface> surface;
+};
+
+CheckFaces::CheckFaces(std::vector<NamedFace> faces, const Tool& tool, double length_mm,
+                       double tolerance_mm)
+    : tool_(tool), length_mm_(length_mm), tolerance_mm_(tolerance_mm) {
+  spacing_mm_ = std::clamp(0.25 * tool.radius, 0.02, 1.0);
+  for (NamedFace& f : faces) {
+    auto face = std::make_unique<Face>();
+    const auto [lo, hi] = FaceBox(f.face);
+    face->box.Add(lo);
+    face->box.Add(hi);
+    face->named = std::move(f);
+    faces_.push_back(std::move(face));
+  }
+}
+
+CheckFaces::~CheckFaces() = default;
+
+const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
+  std::call_once(face.once, [&] {
+    face.surface = std::make_unique<FaceSurface>(face.named.face, face.named.where);
+    const FaceSurface& s = *face.surface;
+    auto out = std::make_unique<Sampled>();
+    // The face's extent along u and along v: the longest of 9 iso-lines, at 64 points each.
+    const auto extent = [&](bool along_u) {
+      double longest = 0.0;
+      for (int k = 0; k <= 8; ++k) {
+        double len = 0.0;
+        Vector3d prev;
+        for (int i = 0; i <= 64; ++i) {
+          const double a = i / 64.0, b = k / 8.0;
+          const double u = s.U0() + (along_u ? a : b) * (s.U1() - s.U0());
+          const double v = s.V0() + (along_u ? b : a) * (s.V1() - s.V0());
+          const Vector3d p = s.Point(u, v);
+          if (i > 0) len += (p - prev).norm();
+          prev = p;
+        }
+        longest = std::max(longest, len);
+      }
+      return longest;
+    };
+    const double lu = extent(true), lv = extent(false);
+    double h = spacing_mm_;
+    while ((lu / h + 2.0) * (lv / h + 2.0) > kMaxSamples) h *= 1.25;
+    out->nu = std::max(2, static_cast<int>(std::ceil(lu / h)) + 1);
+    out->nv = std::max(2, static_cast<int>(std::ceil(lv / h)) + 1);
+    const std::size_t n = static_cast<std::size_t>(out->nu) * static_cast<std::size_t>(out->nv);
+    out->p.resize(n);
+    out->uv.resize(n);
+    out->on.resize(n);
+    for (int i = 0; i < out->nu; ++i) {
+      for (int j = 0; j < out->nv; ++j) {
+        const std::size_t k = static_cast<std::size_t>(i) * out->nv + j;
+        const double u = s.U0() + (s.U1() - s.U0()) * i / (out->nu - 1);
+        const double v = s.V0() + (s.V1() - s.V0()) * j / (out->nv - 1);
+        out->uv[k] = Vector2d(u, v);
+        out->p[k] = s.Point(u, v);
+        out->on[k] = s.Inside(u, v) ? 1 : 0;
+      }
+    }
+    // The covering radius: half the largest cell diagonal (the cells are nearly flat at this
+    // spacing; a tenth more for their bend).
+    double cover = 0.0;
+    for (int i = 0; i + 1 < out->nu; ++i) {
+      for (int j = 0; j + 1 < out->nv; ++j) {
+        const std::size_t k = static_cast<std::size_t>(i) * out->nv + j;
+        const std::size_t across = k + static_cast<std::size_t>(out->nv) + 1;
+        const std::size_t up = k + static_cast<std::size_t>(out->nv);
+        cover = std::max(
+            {cover, (out->p[across] - out->p[k]).norm(), (out->p[up] - out->p[k + 1]).norm()});
+      }
+    }
+    out->cover = 0.55 * cover;
+    for (int i0 = 0; i0 < out->nu; i0 += kBlock) {
+      for (int j0 = 0; j0 < out->nv; j0 += kBlock) {
+        Sampled::Block b{i0,
+                         std::min(out->nu, i0 + kBlock + 1),
+                         j0,
+                         std::min(out->nv, j0 + kBlock + 1),
+                         Vector3d::Zero(),
+                         0.0};
+        Box box;
+        bool any = false;
+        for (int i = b.i0; i < b.i1; ++i) {
+          for (int j = b.j0; j < b.j1; ++j) {
+            const std::size_t k = static_cast<std::size_t>(i) * out->nv + j;
+            box.Add(out->p[k]);
+            any = any || out->on[k];
+          }
+        }
+        if (!any) continue;
+        b.centre = 0.5 * (box.lo + box.hi);
+        b.half_diagonal = 0.5 * (box.hi - box.lo).norm();
+        out->blocks.push_back(b);
+      }
+    }
+    face.samples = std::move(out);
+  });
+  return *face.samples;
+}
+
+std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vector3d& axis) const {
+  std::optional<Hit> deepest;
+  const auto record = [&](const Face& face, double d, const Vector3d& at, const Vector2d& uv) {
+    if (-d > tolerance_mm_ && (!deepest || -d > deepest->depth_mm)) {
+      deepest = Hit{-d, at, uv, face.named.where};
+    }
+  };
+  for (const auto& face_ptr : faces_) {
+    const Face& face = *face_ptr;
+    // The face's box against the tool's: the tool lies within R + r of the segment of its axis
+    // from the tip up its length (clipped to the face's box, which it cannot reach past).
+    const Vector3d centre = 0.5 * (face.box.lo + face.box.hi);
+    const double half = 0.5 * (face.box.hi - face.box.lo).norm();
+    if (Measure(tool_, length_mm_, tip, axis, centre).d > half) continue;
+    const Sampled& s = Samples(face);
+    struct Seed {
+      double d;
+      std::size_t k;
+    };
+    std::vector<Seed> seeds;
+    for (const Sampled::Block& b : s.blocks) {
+      if (Measure(tool_, length_mm_, tip, axis, b.centre).d > b.half_diagonal + s.cover) continue;
+      Seed best{INFINITY, 0};
+      for (int i = b.i0; i < b.i1; ++i) {
+        for (int j = b.j0; j < b.j1; ++j) {
+          const std::size_t k = static_cast<std::size_t>(i) * s.nv + j;
+          if (!s.on[k]) continue;
+          const double d = Measure(tool_, length_mm_, tip, axis, s.p[k]).d;
+          if (d < best.d) best = {d, k};
+        }
+      }
+      if (best.d < -tolerance_mm_) record(face, best.d, s.p[best.k], s.uv[best.k]);
+      if (best.d < s.cover) seeds.push_back(best);
+    }
+    if (seeds.empty()) continue;
+    // From each seed, descend on the exact face: a step along the distance's gradient projected
+    // onto the tangent plane, mapped to (u, v), halved until the distance falls.
+    std::lock_guard lock(face.eval_mutex);
+    const FaceSurface& surface = *face.surface;
+    for (const Seed& seed : seeds) {
+      Vector2d uv = s.uv[seed.k];
+      Vector3d q = s.p[seed.k];
+      double d = seed.d;
+      double step = s.cover;
+      for (int it = 0; it < 60 && step > 1e-9 && d >= -tolerance_mm_; ++it) {
+        SurfaceDerivatives der;
+        surface.D2(uv.x(), uv.y(), &der);
+        const ToolDistance here = Measure(tool_, length_mm_, tip, axis, der.p);
+        Eigen::Matrix<double, 3, 2> jac;
+        jac << der.su, der.sv;
+        const Vector2d g = jac.transpose() * here.grad;
+        const Eigen::Matrix2d metric = jac.transpose() * jac;
+        Vector2d dir = -metric.ldlt().solve(g);
+        const double len = (jac * dir).norm();
+        if (!(len > 0.0) || !dir.allFinite()) break;
+        dir /= len;  // a unit step in space
+        bool moved = false;
+        while (step > 1e-9) {
+          const Vector2d next = uv + step * dir;
+          if (surface.InBox(next.x(), next.y()) && surface.Inside(next.x(), next.y())) {
+            const Vector3d p = surface.Point(next.x(), next.y());
+            const double dn = Measure(tool_, length_mm_, tip, axis, p).d;
+            if (dn < d) {
+              uv = next, q = p, d = dn;
+              moved = true;
+              step *= 1.5;
+              break;
+            }
+          }
+          step *= 0.5;
+        }
+        if (!moved) break;
+      }
+      record(face, d, q, uv);
+    }
+  }
+  return deepest;
+}
+
+}  // namespace dtis::geometry
