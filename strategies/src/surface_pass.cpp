@@ -526,16 +526,26 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
       out.state = from;
       return out;
     }
-    // The pass is what the builder traced from its start to its end. Only near those ends does
-    // the face's boundary matter here: a pass that skims the boundary between them (closer than
-    // the trace's step could see) is followed on the surface's natural extension. At an end, the
-    // pose stays on the boundary point this march meets.
-    // Classified once per step (a point near a trimming loop asks OpenCASCADE's classifier).
+    // The pass is what the builder traced from its start to its end: the trace found it on the
+    // face between them, so a step that ends short of an end is not classified (a point near a
+    // trimming loop would ask OpenCASCADE's classifier, and the planner marches near the pass's
+    // ends again and again while it brakes for them). Only near those ends does the face's
+    // boundary matter here: a pass that skims the boundary between them (closer than the trace's
+    // step could see) is followed on the surface's natural extension. At an end, the pose stays
+    // on the boundary point this march meets.
+    const double reached = cur_s + delta;
+    if ((delta > 0.0 && reached < length_ - kSnapMm) || (delta < 0.0 && reached > kSnapMm)) {
+      cur = next;
+      cur_s = reached;
+      continue;
+    }
     const bool inside = eval_.Inside(next.uv);
     if (inside) {
       // On the face: nothing to decide.
     } else if ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm)) {
-      next = eval_.LastInside(cur, delta > 0.0 ? 1.0 : -1.0, (next.tip - cur.tip).norm(), options_);
+      // Off the face within the snap of an end: the end the trace found on the boundary (the
+      // same point however the march came to it, and no search for it each time).
+      next = delta > 0.0 ? end_ : start_;
       stalled = true;
     } else if (const double off_face = eval_.DistanceOutside(next.uv); off_face <= kOffFaceMm) {
       // Skimming the boundary between the pass's ends: followed on the surface's extension.
