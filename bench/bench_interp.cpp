@@ -15,6 +15,7 @@
 #include "dtis/io/gcode_program.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/kinematics/machines.hpp"
+#include "face_with_holes.hpp"
 
 namespace {
 
@@ -149,7 +150,8 @@ void SurfacePlan(benchmark::State& state, const char* job_file) {
 // A surface job's passes and links planned with either planner, one thread, the part loaded.
 //   build/bench/dtis_bench --benchmark_filter=SurfacePlanner/
 void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind planner) {
-  auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  auto job = dtis::io::LoadJob(job_file[0] == '/' ? std::string(job_file)
+                                                  : std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
   const auto machine = dtis::io::LoadJobMachine(job);
   const auto setup = dtis::io::SetUpSurface(job);
@@ -171,6 +173,22 @@ void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind p
 DTIS_PLANNERS_ONCE(SurfacePlanner, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml");
 DTIS_PLANNERS_ONCE(SurfacePlanner, tilt10_singular, "samples/jobs/surface_tilt10_singular.toml");
 DTIS_PLANNERS_ONCE(SurfacePlanner, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml");
+// A trimmed rational face of a real part: passes end on its trimming loops.
+DTIS_PLANNERS_ONCE(SurfacePlanner, trimmed_face, "bench/jobs/trimmed_face.toml");
+
+// A whole trimmed B-spline face with holes: a wavy ruled face 60 x 60 mm (waves of 3 mm over
+// 30 mm) with two round holes of 6 mm radius, made here and written with a plane_cl job (1 mm
+// ball, stepover 3 mm, on the XYZ Mikron) into a folder of this run's own.
+void SurfacePlannerHoles(benchmark::State& state, PlannerKind planner) {
+  static const std::string job = dtis::bench::WriteFaceWithHolesJob();
+  SurfacePlanner(state, job.c_str(), planner);
+}
+BENCHMARK_CAPTURE(SurfacePlannerHoles, holes_lookahead, PlannerKind::kLookAhead)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_CAPTURE(SurfacePlannerHoles, holes_vpop, PlannerKind::kVpop)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
     ->Arg(1)

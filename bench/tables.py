@@ -18,7 +18,8 @@ import subprocess
 import sys
 import tempfile
 
-FILTER = ("Plan/|GcodePlanSample/|SurfacePlanner/|Surface/|SurfacePlan/|SurfaceD2|CurvePoint|"
+FILTER = ("Plan/|GcodePlanSample/|SurfacePlanner/|SurfacePlannerHoles/|Surface/|SurfacePlan/|"
+          "SurfaceD2|CurvePoint|"
           "CurveD3|GcodeRead|GcodeLoad1M|Export")
 
 # (benchmark family, sample name) in the order the planner table lists them.
@@ -28,7 +29,8 @@ PLANNED = [
     ("GcodePlanSample", "lock"), ("GcodePlanSample", "fine_wave"),
     ("GcodePlanSample", "five_axis_g1"),
     ("SurfacePlanner", "tilt10_xyzac"), ("SurfacePlanner", "tilt10_singular"),
-    ("SurfacePlanner", "plane_cl_3axis"),
+    ("SurfacePlanner", "plane_cl_3axis"), ("SurfacePlanner", "trimmed_face"),
+    ("SurfacePlannerHoles", "holes"),
 ]
 PLANNERS = ("vpop", "lookahead")
 
