@@ -780,7 +780,7 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
   const StepModel part =
       StepModel::Load(test::Source("samples/parts/occt_ec_turbine-A_53faces_rational.stp"));
   std::mt19937 rng(20261125);
-  int trimmed = 0;
+  int trimmed = 0, total_surely_outside = 0;
   double coverage = 0.0;
   for (int f = 1; f <= part.FaceCount(); ++f) {
     const FaceSurface face(part.Face(f), "face " + std::to_string(f));
@@ -788,10 +788,17 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
     ++trimmed;
     coverage += face.GridCoverage();
     std::uniform_real_distribution<double> u(face.U0(), face.U1()), v(face.V0(), face.V1());
-    int disagree = 0;
+    int disagree = 0, surely_outside = 0;
+    // SurelyOutside answers from the grid alone: never for a point on the face.
+    const auto surely = [&](double a, double b) {
+      if (!face.SurelyOutside(a, b)) return 0;
+      ++surely_outside;
+      return face.InsideByClassifier(a, b) ? 1 : 0;
+    };
     for (int k = 0; k < 2000; ++k) {
       const double a = u(rng), b = v(rng);
       disagree += face.Inside(a, b) != face.InsideByClassifier(a, b);
+      disagree += surely(a, b);
     }
     // Next to the boundary, where the grid must hand over to the classifier.
     const double eps = 1e-7 * std::max(face.U1() - face.U0(), face.V1() - face.V0());
@@ -802,11 +809,14 @@ TEST(FaceSurface, TrimGridAgreesWithTheClassifier) {
               Eigen::Vector2d(0, eps), Eigen::Vector2d(0, -eps)}) {
           const Eigen::Vector2d q = p + d;
           disagree += face.Inside(q.x(), q.y()) != face.InsideByClassifier(q.x(), q.y());
+          disagree += surely(q.x(), q.y());
         }
       }
     }
     EXPECT_EQ(disagree, 0) << face.Where();
+    total_surely_outside += surely_outside;
   }
+  EXPECT_GT(total_surely_outside, 1000);  // it does answer
   EXPECT_GE(trimmed, 10);
   EXPECT_GT(coverage / trimmed, 0.5);
   std::printf("trim grid: %d trimmed faces, %.0f %% of their UV boxes answered by the grid\n",

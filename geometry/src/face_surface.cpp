@@ -220,6 +220,16 @@ bool FaceSurface::Inside(double u, double v) const {
   return InsideByClassifier(u, v);
 }
 
+bool FaceSurface::SurelyOutside(double u, double v) const {
+  if (!InBox(u, v)) return true;
+  if (!classifier_) return false;
+  if (grid_.n == 0) return !InsideByClassifier(u, v);
+  const int n = grid_.n;
+  const int x = std::clamp(static_cast<int>((u - u0_) / (u1_ - u0_) * n), 0, n - 1);
+  const int y = std::clamp(static_cast<int>((v - v0_) / (v1_ - v0_) * n), 0, n - 1);
+  return grid_.cells[static_cast<std::size_t>(y * n + x)] == TrimGrid::kOut;
+}
+
 bool FaceSurface::InsideByClassifier(double u, double v) const {
   if (!InBox(u, v)) return false;
   if (!classifier_) return true;

@@ -491,12 +491,12 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
     return nullptr;
   };
   const Bridge* hop = next_bridge();
-  // The march and the builder's trace sum their arcs over different steps: they agree to far
-  // better than this. Within it of an end, the face's boundary is that end.
-  constexpr double kSnapMm = 1e-4;
   // A pass may skim the boundary between its ends by what the trace's step cannot see; more than
   // this off the face is another pass.
   constexpr double kOffFaceMm = 1e-2;
+  // The march and the builder's trace sum their arcs over different steps: they agree to far
+  // better than this. Within it of an end, the face's boundary is that end.
+  constexpr double kSnapMm = 1e-4;
   bool stalled = false;
   double longest = options_.max_step_mm;
   for (;;) {
@@ -527,32 +527,29 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
       return out;
     }
     // The pass is what the builder traced from its start to its end: the trace found it on the
-    // face between them, so a step that ends short of an end is not classified (a point near a
-    // trimming loop would ask OpenCASCADE's classifier, and the planner marches near the pass's
-    // ends again and again while it brakes for them). Only near those ends does the face's
-    // boundary matter here: a pass that skims the boundary between them (closer than the trace's
-    // step could see) is followed on the surface's natural extension. At an end, the pose stays
-    // on the boundary point this march meets.
+    // face between them. So the march is classified only as far as the trim grid answers alone
+    // (OpenCASCADE's classifier next to the trimming loops is what the planner paid for, marching
+    // near the pass's ends again and again while it brakes for them); a pass that skims the
+    // boundary between its ends (closer than the trace's step could see) is followed on the
+    // surface's natural extension. Within the snap of an end, a point the march puts past the
+    // traced end (along the pass's travel there) is that end: the same point however the march
+    // came to it.
     const double reached = cur_s + delta;
-    if ((delta > 0.0 && reached < length_ - kSnapMm) || (delta < 0.0 && reached > kSnapMm)) {
-      cur = next;
-      cur_s = reached;
-      continue;
-    }
-    const bool inside = eval_.Inside(next.uv);
-    if (inside) {
-      // On the face: nothing to decide.
-    } else if ((delta > 0.0 && target >= length_ - kSnapMm) || (delta < 0.0 && target <= kSnapMm)) {
-      // Off the face within the snap of an end: the end the trace found on the boundary (the
-      // same point however the march came to it, and no search for it each time).
-      next = delta > 0.0 ? end_ : start_;
-      stalled = true;
+    const bool near_end = delta > 0.0 ? reached >= length_ - kSnapMm : reached <= kSnapMm;
+    if (near_end) {
+      const ContactPoint& end = delta > 0.0 ? end_ : start_;
+      if ((next.tip - end.tip).dot(end.tangent) * (delta > 0.0 ? 1.0 : -1.0) > 0.0) {
+        next = end;
+        stalled = true;
+      }
+    } else if (!eval_.SurelyOutside(next.uv)) {
+      // On the face, or next to its trimming loops: as the trace found it.
     } else if (const double off_face = eval_.DistanceOutside(next.uv); off_face <= kOffFaceMm) {
       // Skimming the boundary between the pass's ends: followed on the surface's extension.
     } else if (delta > 0.0) {
-      // The pass leaves the face here, before the trace said: a pass that meets the boundary at a
-      // grazing angle has an ill-conditioned end, and this march's is the one its poses agree
-      // with. Report the end here (the planner stops there; links start from where it stops).
+      // The pass leaves the face here, before the trace said (the march has come onto another
+      // branch of the strategy's line, or the pass meets the boundary at a grazing angle): report
+      // the end here (the planner stops there; links start from where it stops).
       const ContactPoint x = eval_.LastInside(cur, 1.0, (next.tip - cur.tip).norm(), options_);
       out.status = PathStatus::kEnd;
       out.state.s = cur_s + ArcFromChord((x.tip - cur.tip).norm(), cur.tangent, x.tangent);

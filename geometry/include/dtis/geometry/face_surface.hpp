@@ -61,6 +61,10 @@ class FaceSurface {
   bool InBox(double u, double v) const;
   // Inside, always asking OpenCASCADE's classifier (BRepTopAdaptor_FClass2d) of a trimmed face.
   bool InsideByClassifier(double u, double v) const;
+  // Off the face without asking the classifier: off the UV box, or in a cell of the trim grid
+  // wholly outside the trimming loops. False on the face and in the cells the loops cross (and,
+  // for a trimmed face without a grid, wherever the classifier says it is on the face).
+  bool SurelyOutside(double u, double v) const;
   // The share of the UV box the grid answers for without the classifier (1 untrimmed, 0 without
   // a grid).
   double GridCoverage() const;

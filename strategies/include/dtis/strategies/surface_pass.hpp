@@ -116,6 +116,9 @@ class PassEvaluator {
   bool Step(const ContactPoint& from, double delta, const NewtonOptions& options, ContactPoint* to,
             EvalStatus* status, int* iterations) const;
   bool Inside(const Eigen::Vector2d& uv) const { return face_.Inside(uv.x(), uv.y()); }
+  bool SurelyOutside(const Eigen::Vector2d& uv) const {
+    return face_.SurelyOutside(uv.x(), uv.y());
+  }
   double DistanceOutside(const Eigen::Vector2d& uv) const {
     return face_.DistanceOutside(uv.x(), uv.y());
   }
