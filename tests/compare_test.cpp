@@ -435,6 +435,24 @@ TEST(SurfaceJob, LinksTraverseAtTheClearanceAboveTheFaceWhereTheToolPasses) {
   }
 }
 
+// A bull nose tilted 10 deg over several plane_cl passes, linked on the XYZAC: each link backs off
+// along the tilted axis, rises in Z alone, traverses and comes down, its corners smoothed. A job
+// like this one on a public part once verified at 1.000001 (Z jerk where a Z-only rise began
+// after a pass); every limit holds here, and the run rests at both ends.
+TEST(SurfaceJob, TiltedBullNosePassesAndTheirLinksHoldEveryLimit) {
+  const std::string path = test::Source("samples/jobs/surface_tilt10_xyzac.toml");
+  std::string text = ReadFile(path);
+  text.replace(text.find("range = [20, 20]"), 16, "range = [16, 22]");
+  const io::Job job = io::ParseJob(text, path);
+  const io::RunResult r = io::RunJob(job);
+  EXPECT_EQ(r.passes, 4);
+  EXPECT_EQ(r.links, 3);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(r.verify.worst_ratio, 1.0);
+  EXPECT_TRUE(r.verify.starts_at_rest);
+  EXPECT_TRUE(r.verify.ends_at_rest);
+}
+
 // Where the face is not under the traverse, a link stays at the height it backs off to; where
 // either tool axis is tilted, the tool's holder reaches sideways by a length the job does not
 // give, and the link traverses above the face's top, as the clearance asks.
