@@ -1412,6 +1412,11 @@ TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
 
   const io::RunResult r = io::RunJob(checked);
   ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_EQ(r.checked_faces, 1);
+  const std::string summary = io::FormatRunSummary(checked, r);
+  EXPECT_NE(summary.find("checked          the tool kept out of 1 other face of the part"),
+            std::string::npos)
+      << summary;
   const auto& c = r.table.columns;
   double closest = INFINITY;
   for (std::size_t k = 0; k < c[0].size(); k += 5) {

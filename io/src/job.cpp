@@ -675,6 +675,7 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
   std::vector<geometry::NamedFace> placed = Placed(spec, model, JobFaces(spec, model));
   std::vector<geometry::NamedFace> others = Placed(spec, model, CheckFaceIndices(spec, model));
   SurfaceSetup setup;
+  setup.checked_faces = static_cast<int>(others.size() + placed.size()) - 1;
   if (phase) phase("tracing passes");
   // Face after face, each with the whole strategy; their passes and stretches left out in turn.
   // The tool finishing one face must not go into the checked faces, nor into the job's others.
@@ -801,6 +802,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   }
   r->passes = static_cast<int>(passes.size());
   r->stepover_mm = setup.passes.stepover_mm;
+  r->checked_faces = setup.checked_faces;
   r->unreachable = setup.passes.UnreachableText(8);
   CheckMotionBound(job, r->path_length_mm);
   const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
@@ -946,6 +948,11 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
         "passes           {} (stepover {:.6g} mm), {} link moves, {:.6f} s on the "
         "passes\n",
         r.passes, r.stepover_mm, r.links, r.pass_motion_s);
+    if (r.checked_faces > 0) {
+      out += fmt::format(
+          "checked          the tool kept out of {} other face{} of the part (check_faces)\n",
+          r.checked_faces, r.checked_faces == 1 ? "" : "s");
+    }
     if (!r.unreachable.empty()) out += "unreachable      " + r.unreachable;
     out += fmt::format("newton           {:.3f} iterations per evaluation ({} evaluations)\n",
                        r.vpop.evaluations ? static_cast<double>(r.vpop.path_iterations) /

@@ -129,6 +129,7 @@ struct RunResult {
   // Surface jobs.
   int passes = 0;
   int links = 0;
+  int checked_faces = 0;  // SurfaceSetup::checked_faces
   double stepover_mm = 0.0;
   double pass_motion_s = 0.0;  // time spent on the passes (links excluded)
   // What the passes leave out where the tool does not fit (PassList::UnreachableText), or "".
@@ -183,6 +184,9 @@ void WriteRunOutputs(const Job& job, const RunResult& result, const std::string&
 // A surface job's passes and how they are linked (for RunJob and the comparison of exports).
 struct SurfaceSetup {
   strategies::PassList passes;
+  // How many faces of the file the tool was kept out of besides the one each pass finishes (the
+  // part's others, check_faces, and the job's other faces).
+  int checked_faces = 0;
   // The heights links traverse at: the clearance above the face where the tool passes
   // (geometry/link_height.hpp). Found on first use, from any thread: a job with one pass and no
   // link to it never meshes the face.
