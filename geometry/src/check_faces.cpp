@@ -18,7 +18,7 @@ using Eigen::Vector3d;
 // Samples per side of a block, whose box decides whether its samples are looked at.
 constexpr int kBlock = 16;
 // Samples per face, at most: past this the spacing grows.
-constexpr double kMaxSamples = 4e6;
+constexpr double kMaxSamples = 1e6;  // about 41 MB
 
 // The distance to the tool in its half-plane (rho >= 0, z), and that distance's gradient there.
 struct Profile {

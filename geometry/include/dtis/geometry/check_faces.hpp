@@ -11,11 +11,12 @@
 //
 // A face goes into the tool where one of its points lies inside the tool by more than the
 // tolerance. Each face is sampled once, on a grid in (u, v) a quarter of the tool radius apart in
-// space (at most 1 mm), when a tool first comes near it. A face point inside the tool lies within
-// the grid's covering radius c of a sample, and the distance to the tool changes by at most the
-// distance moved, so every face that goes into the tool has a sample less than c outside it: from
-// each such sample (the closest of each block of 16 x 16) the distance is minimised on the exact
-// face (descent in (u, v), staying on the trimmed face), and what is found inside is a hit.
+// space (at most 1 mm; wider on a face that would need more than a million samples), when a tool
+// first comes near it. A face point inside the tool lies within the grid's covering radius c of
+// a sample, and the distance to the tool changes by at most the distance moved, so every face
+// that goes into the tool has a sample less than c outside it: from each such sample (the closest
+// of each block of 16 x 16) the distance is minimised on the exact face (descent in (u, v),
+// staying on the trimmed face), and what is found inside is a hit.
 #pragma once
 
 #include <Eigen/Core>
