@@ -8,9 +8,12 @@
 #include <BRepBuilderAPI_MakePolygon.hxx>
 #include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepBuilderAPI_MakeWire.hxx>
+#include <BRepBuilderAPI_Transform.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
+#include <BRepPrimAPI_MakeRevol.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
+#include <GC_MakeArcOfCircle.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
@@ -34,8 +37,11 @@
 #include <TopoDS_Wire.hxx>
 #include <cmath>
 #include <fstream>
+#include <gp.hxx>
+#include <gp_Ax3.hxx>
 #include <gp_Circ.hxx>
 #include <gp_Pln.hxx>
+#include <gp_Trsf.hxx>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -1369,18 +1375,51 @@ TEST(CheckFaces, DistanceToTheToolInClosedForm) {
   EXPECT_LT(geometry::ToolSignedDistance(flat, INFINITY, 3.9, 0.05), 0.0);
 }
 
+// A wall standing at x = 30 over y in [-1, 61], z in [-5, 20].
+TopoDS_Face Wall() {
+  BRepBuilderAPI_MakePolygon outline(gp_Pnt(30, -1, -5), gp_Pnt(30, 61, -5), gp_Pnt(30, 61, 20),
+                                     gp_Pnt(30, -1, 20), Standard_True);
+  return BRepBuilderAPI_MakeFace(outline.Wire(), Standard_True).Face();
+}
+
+// A floor (the left half of the wavy face, x in [0, 30]) and the wall at its edge, as faces
+// "floor" and "wall" of a STEP file `name`.stp.
+std::string FloorAndWall(const std::string& name) {
+  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
+  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face();
+  return WriteNamedFaces(name, {{floor, "floor"}, {Wall(), "wall"}});
+}
+
+// A ball end of radius r as an OpenCASCADE solid, `length` up its axis from the tip: its profile
+// (the quarter circle of the ball, the shank's side and top) turned about the axis, then placed
+// at `tip` along `axis`. Every radius is less `shrink` (the tip raised by it); a negative shrink
+// grows the tool.
+TopoDS_Shape BallSolid(double r, double length, const Eigen::Vector3d& tip,
+                       const Eigen::Vector3d& axis, double shrink) {
+  const double rs = r - shrink;
+  const gp_Pnt bottom(0, 0, r - rs), side(rs, 0, r), top_side(rs, 0, length), top(0, 0, length);
+  const gp_Pnt mid(rs * std::sin(M_PI / 4), 0, r - rs * std::cos(M_PI / 4));
+  BRepBuilderAPI_MakeWire profile;
+  profile.Add(BRepBuilderAPI_MakeEdge(GC_MakeArcOfCircle(bottom, mid, side).Value()).Edge());
+  profile.Add(BRepBuilderAPI_MakeEdge(side, top_side).Edge());
+  profile.Add(BRepBuilderAPI_MakeEdge(top_side, top).Edge());
+  profile.Add(BRepBuilderAPI_MakeEdge(top, bottom).Edge());
+  const TopoDS_Face half = BRepBuilderAPI_MakeFace(profile.Wire(), Standard_True).Face();
+  const TopoDS_Shape tool = BRepPrimAPI_MakeRevol(half, gp::OZ(), 2 * M_PI).Shape();
+  gp_Trsf place;
+  place.SetDisplacement(gp_Ax3(gp::XOY()), gp_Ax3(gp_Pnt(tip.x(), tip.y(), tip.z()),
+                                                  gp_Dir(axis.x(), axis.y(), axis.z())));
+  return BRepBuilderAPI_Transform(tool, place, Standard_True).Shape();
+}
+
 // A floor (the left half of the wavy face) with a wall standing at its edge, x = 30: plane_cl
 // passes towards the wall stop where the ball would go into it, 3 mm short (the tip at x = 27),
 // the stretch reported; without the check they run on to the floor's edge. Every setpoint of the
 // planned job keeps the ball out of the wall by OpenCASCADE's distance from its centre, to the
 // check's tolerance.
 TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
-  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
-  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face();
-  BRepBuilderAPI_MakePolygon outline(gp_Pnt(30, -1, -5), gp_Pnt(30, 61, -5), gp_Pnt(30, 61, 20),
-                                     gp_Pnt(30, -1, 20), Standard_True);
-  const TopoDS_Face wall = BRepBuilderAPI_MakeFace(outline.Wire(), Standard_True).Face();
-  const std::string step = WriteNamedFaces("wall", {{floor, "floor"}, {wall, "wall"}});
+  const TopoDS_Face wall = Wall();
+  const std::string step = FloorAndWall("wall");
   const auto job = [&](const std::string& check) {
     return BallJob(step, "face = \"floor\"\n" + check,
                    "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 9",
@@ -1427,6 +1466,35 @@ TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
   }
   EXPECT_GE(closest, 3.0 - tol);
   EXPECT_LT(closest, 3.0 + 0.01);  // and it came to the wall
+}
+
+// Tilted 10 deg towards the wall (tilt_yaw leans the axis towards the feed), the ball's shank
+// reaches the wall before the ball does: passes stop earlier than 3-axis, where the tool, as an
+// OpenCASCADE solid reaching 100 mm up its axis, touches the wall: shrunk by the check's tolerance
+// it is clear of it (OpenCASCADE's distance between the solid and the wall), grown by 0.01 mm it
+// meets it.
+TEST(CheckFaces, ATiltedToolStopsWhereItsShankReachesTheWall) {
+  const TopoDS_Face wall = Wall();
+  const std::string step = FloorAndWall("tilted_wall");
+  const io::Job job = BallJob(step, "face = \"floor\"",
+                              "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 12\n"
+                              "[orientation]\nkind = \"tilt_yaw\"\ntilt_deg = 10",
+                              test::Scratch("tilted_wall.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  ASSERT_GE(setup.passes.passes.size(), 4u);
+  const double tol = job.surface->check_tolerance_mm;
+  for (const auto& pass : setup.passes.passes) {
+    const Pose end = pass->EndPose();
+    SCOPED_TRACE(fmt::format("pass at y = {}, ends at x = {}", end.tip.y(), end.tip.x()));
+    EXPECT_GT(end.axis.x(), 0.1);        // leaning towards the wall
+    EXPECT_LT(end.tip.x(), 27.0 - 1.0);  // its shank, not the ball, stops it
+    BRepExtrema_DistShapeShape clear(BallSolid(3.0, 100.0, end.tip, end.axis, tol + 1e-4), wall);
+    ASSERT_TRUE(clear.IsDone());
+    EXPECT_GT(clear.Value(), 0.0);
+    BRepExtrema_DistShapeShape meets(BallSolid(3.0, 100.0, end.tip, end.axis, -0.01), wall);
+    ASSERT_TRUE(meets.IsDone());
+    EXPECT_LT(meets.Value(), 1e-9);
+  }
 }
 
 // A part larger than the machine's travel is finished in parts: with bounds, passes start and end

@@ -241,7 +241,8 @@ std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vecto
     }
     if (seeds.empty()) continue;
     // From each seed, descend on the exact face: a step along the distance's gradient projected
-    // onto the tangent plane, mapped to (u, v), halved until the distance falls.
+    // onto the tangent plane, mapped to (u, v) and projected onto the UV box (the deepest point
+    // may lie on a side: the top edge of a wall), halved until the distance falls.
     std::lock_guard lock(face.eval_mutex);
     const FaceSurface& surface = *face.surface;
     for (const Seed& seed : seeds) {
@@ -263,8 +264,10 @@ std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vecto
         dir /= len;  // a unit step in space
         bool moved = false;
         while (step > 1e-9) {
-          const Vector2d next = uv + step * dir;
-          if (surface.InBox(next.x(), next.y()) && surface.Inside(next.x(), next.y())) {
+          // Projected onto the UV box: along a side where the deepest point lies on it.
+          const Vector2d next(std::clamp(uv.x() + step * dir.x(), surface.U0(), surface.U1()),
+                              std::clamp(uv.y() + step * dir.y(), surface.V0(), surface.V1()));
+          if (next != uv && surface.Inside(next.x(), next.y())) {
             const Vector3d p = surface.Point(next.x(), next.y());
             const double dn = Measure(tool_, length_mm_, tip, axis, p).d;
             if (dn < d) {
