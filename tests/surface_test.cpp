@@ -1375,19 +1375,21 @@ TEST(CheckFaces, DistanceToTheToolInClosedForm) {
   EXPECT_LT(geometry::ToolSignedDistance(flat, INFINITY, 3.9, 0.05), 0.0);
 }
 
-// A wall standing at x = 30 over y in [-1, 61], z in [-5, 20].
-TopoDS_Face Wall() {
-  BRepBuilderAPI_MakePolygon outline(gp_Pnt(30, -1, -5), gp_Pnt(30, 61, -5), gp_Pnt(30, 61, 20),
-                                     gp_Pnt(30, -1, 20), Standard_True);
+// A wall standing at x = 30 over y in [-1, 61], z from -5 to 20 (or, `slanted`, to a top edge
+// rising from 18 to 22 along y: a trimmed face, its top edge a trimming loop).
+TopoDS_Face Wall(bool slanted = false) {
+  BRepBuilderAPI_MakePolygon outline(gp_Pnt(30, -1, -5), gp_Pnt(30, 61, -5),
+                                     gp_Pnt(30, 61, slanted ? 22 : 20),
+                                     gp_Pnt(30, -1, slanted ? 18 : 20), Standard_True);
   return BRepBuilderAPI_MakeFace(outline.Wire(), Standard_True).Face();
 }
 
 // A floor (the left half of the wavy face, x in [0, 30]) and the wall at its edge, as faces
 // "floor" and "wall" of a STEP file `name`.stp.
-std::string FloorAndWall(const std::string& name) {
+std::string FloorAndWall(const std::string& name, const TopoDS_Face& wall = Wall()) {
   const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
   const TopoDS_Face floor = BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face();
-  return WriteNamedFaces(name, {{floor, "floor"}, {Wall(), "wall"}});
+  return WriteNamedFaces(name, {{floor, "floor"}, {wall, "wall"}});
 }
 
 // A ball end of radius r as an OpenCASCADE solid, `length` up its axis from the tip: its profile
@@ -1474,26 +1476,31 @@ TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
 // it is clear of it (OpenCASCADE's distance between the solid and the wall), grown by 0.01 mm it
 // meets it.
 TEST(CheckFaces, ATiltedToolStopsWhereItsShankReachesTheWall) {
-  const TopoDS_Face wall = Wall();
-  const std::string step = FloorAndWall("tilted_wall");
-  const io::Job job = BallJob(step, "face = \"floor\"",
-                              "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 12\n"
-                              "[orientation]\nkind = \"tilt_yaw\"\ntilt_deg = 10",
-                              test::Scratch("tilted_wall.toml"));
-  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
-  ASSERT_GE(setup.passes.passes.size(), 4u);
-  const double tol = job.surface->check_tolerance_mm;
-  for (const auto& pass : setup.passes.passes) {
-    const Pose end = pass->EndPose();
-    SCOPED_TRACE(fmt::format("pass at y = {}, ends at x = {}", end.tip.y(), end.tip.x()));
-    EXPECT_GT(end.axis.x(), 0.1);        // leaning towards the wall
-    EXPECT_LT(end.tip.x(), 27.0 - 1.0);  // its shank, not the ball, stops it
-    BRepExtrema_DistShapeShape clear(BallSolid(3.0, 100.0, end.tip, end.axis, tol + 1e-4), wall);
-    ASSERT_TRUE(clear.IsDone());
-    EXPECT_GT(clear.Value(), 0.0);
-    BRepExtrema_DistShapeShape meets(BallSolid(3.0, 100.0, end.tip, end.axis, -0.01), wall);
-    ASSERT_TRUE(meets.IsDone());
-    EXPECT_LT(meets.Value(), 1e-9);
+  for (const bool slanted : {false, true}) {
+    const TopoDS_Face wall = Wall(slanted);
+    ASSERT_EQ(FaceSurface(wall, "wall").Trimmed(), slanted);
+    const std::string step = FloorAndWall(slanted ? "slanted_wall" : "tilted_wall", wall);
+    const io::Job job =
+        BallJob(step, "face = \"floor\"",
+                "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 12\n"
+                "[orientation]\nkind = \"tilt_yaw\"\ntilt_deg = 10",
+                test::Scratch("tilted_wall.toml"));
+    const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+    ASSERT_GE(setup.passes.passes.size(), 4u);
+    const double tol = job.surface->check_tolerance_mm;
+    for (const auto& pass : setup.passes.passes) {
+      const Pose end = pass->EndPose();
+      SCOPED_TRACE(fmt::format("{} wall, pass at y = {}, ends at x = {}",
+                               slanted ? "slanted" : "level", end.tip.y(), end.tip.x()));
+      EXPECT_GT(end.axis.x(), 0.1);        // leaning towards the wall
+      EXPECT_LT(end.tip.x(), 27.0 - 1.0);  // its shank, not the ball, stops it
+      BRepExtrema_DistShapeShape clear(BallSolid(3.0, 100.0, end.tip, end.axis, tol + 1e-4), wall);
+      ASSERT_TRUE(clear.IsDone());
+      EXPECT_GT(clear.Value(), 0.0);
+      BRepExtrema_DistShapeShape meets(BallSolid(3.0, 100.0, end.tip, end.axis, -0.01), wall);
+      ASSERT_TRUE(meets.IsDone());
+      EXPECT_LT(meets.Value(), 1e-9);
+    }
   }
 }
 

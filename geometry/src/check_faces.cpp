@@ -95,6 +95,12 @@ struct CheckFaces::Sampled {
     double half_diagonal;
   };
   std::vector<Block> blocks;
+  // A trimmed face's loops, sampled a sixteenth of the grid's spacing apart: the descent stops at
+  // a loop, so the deepest point on one (the rim of a hole) is found among these. Blocks of 64
+  // consecutive points ([i0, i1)).
+  std::vector<Vector3d> rim;
+  std::vector<Vector2d> rim_uv;
+  std::vector<Block> rim_blocks;
 };
 
 struct CheckFaces::Face {
@@ -200,6 +206,34 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
         out->blocks.push_back(b);
       }
     }
+    if (s.Trimmed()) {
+      // The loops, refined until their chords are a sixteenth of the grid's spacing.
+      int per_edge = 64;
+      for (int round = 0; round < 2; ++round) {
+        double longest = 0.0;
+        out->rim.clear();
+        out->rim_uv.clear();
+        for (const auto& loop : s.Boundary(per_edge)) {
+          for (std::size_t k = 0; k < loop.size(); ++k) {
+            out->rim_uv.push_back(loop[k]);
+            out->rim.push_back(s.Point(loop[k].x(), loop[k].y()));
+            if (k > 0) {
+              longest = std::max(longest, (out->rim.back() - out->rim[out->rim.size() - 2]).norm());
+            }
+          }
+        }
+        const double wanted = h / 16.0;
+        if (longest <= wanted) break;
+        per_edge = std::min(20000, static_cast<int>(std::ceil(per_edge * longest / wanted)));
+      }
+      for (std::size_t i0 = 0; i0 < out->rim.size(); i0 += 64) {
+        const std::size_t i1 = std::min(out->rim.size(), i0 + 64);
+        Box box;
+        for (std::size_t i = i0; i < i1; ++i) box.Add(out->rim[i]);
+        out->rim_blocks.push_back({static_cast<int>(i0), static_cast<int>(i1), 0, 0,
+                                   0.5 * (box.lo + box.hi), 0.5 * (box.hi - box.lo).norm()});
+      }
+    }
     face.samples = std::move(out);
   });
   return *face.samples;
@@ -238,6 +272,13 @@ std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vecto
       }
       if (best.d < -tolerance_mm_) record(face, best.d, s.p[best.k], s.uv[best.k]);
       if (best.d < s.cover) seeds.push_back(best);
+    }
+    for (const Sampled::Block& b : s.rim_blocks) {
+      if (Measure(tool_, length_mm_, tip, axis, b.centre).d > b.half_diagonal) continue;
+      for (int i = b.i0; i < b.i1; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        record(face, Measure(tool_, length_mm_, tip, axis, s.rim[k]).d, s.rim[k], s.rim_uv[k]);
+      }
     }
     if (seeds.empty()) continue;
     // From each seed, descend on the exact face: a step along the distance's gradient projected
