@@ -73,7 +73,8 @@ struct Box {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  bool Empty() const { return !(lo.x() <= hi.x()); }
+  Vector3d Centre() const { return 0.5 * (lo + hi); }
+  double HalfDiagonal() const { return 0.5 * (hi - lo).norm(); }
 };
 
 }  // namespace
@@ -105,7 +106,7 @@ struct CheckFaces::Sampled {
 
 struct CheckFaces::Face {
   NamedFace named;
-  Box box;  // the face's, widened by nothing
+  Box box;  // the face's bounding box
   mutable std::once_flag once;
   mutable std::unique_ptr<Sampled> samples;
   mutable std::mutex eval_mutex;  // guards `surface` (its evaluation cache)
@@ -117,7 +118,7 @@ CheckFaces::CheckFaces(std::vector<NamedFace> faces, const Tool& tool, double le
     : tool_(tool), length_mm_(length_mm), tolerance_mm_(tolerance_mm) {
   spacing_mm_ = std::clamp(0.25 * tool.radius, 0.02, 1.0);
   for (NamedFace& f : faces) {
-    auto face = std::make_unique<Face>();
+    auto face = std::make_shared<Face>();
     const auto [lo, hi] = FaceBox(f.face);
     face->box.Add(lo);
     face->box.Add(hi);
@@ -127,6 +128,12 @@ CheckFaces::CheckFaces(std::vector<NamedFace> faces, const Tool& tool, double le
 }
 
 CheckFaces::~CheckFaces() = default;
+
+CheckFaces CheckFaces::Without(std::size_t except) const {
+  CheckFaces less = *this;
+  less.faces_.erase(less.faces_.begin() + static_cast<std::ptrdiff_t>(except));
+  return less;
+}
 
 const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
   std::call_once(face.once, [&] {
@@ -201,8 +208,8 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
           }
         }
         if (!any) continue;
-        b.centre = 0.5 * (box.lo + box.hi);
-        b.half_diagonal = 0.5 * (box.hi - box.lo).norm();
+        b.centre = box.Centre();
+        b.half_diagonal = box.HalfDiagonal();
         out->blocks.push_back(b);
       }
     }
@@ -230,8 +237,8 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
         const std::size_t i1 = std::min(out->rim.size(), i0 + 64);
         Box box;
         for (std::size_t i = i0; i < i1; ++i) box.Add(out->rim[i]);
-        out->rim_blocks.push_back({static_cast<int>(i0), static_cast<int>(i1), 0, 0,
-                                   0.5 * (box.lo + box.hi), 0.5 * (box.hi - box.lo).norm()});
+        out->rim_blocks.push_back(
+            {static_cast<int>(i0), static_cast<int>(i1), 0, 0, box.Centre(), box.HalfDiagonal()});
       }
     }
     face.samples = std::move(out);
@@ -250,9 +257,9 @@ std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vecto
     const Face& face = *face_ptr;
     // The face's box against the tool's: the tool lies within R + r of the segment of its axis
     // from the tip up its length (clipped to the face's box, which it cannot reach past).
-    const Vector3d centre = 0.5 * (face.box.lo + face.box.hi);
-    const double half = 0.5 * (face.box.hi - face.box.lo).norm();
-    if (Measure(tool_, length_mm_, tip, axis, centre).d > half) continue;
+    if (Measure(tool_, length_mm_, tip, axis, face.box.Centre()).d > face.box.HalfDiagonal()) {
+      continue;
+    }
     const Sampled& s = Samples(face);
     struct Seed {
       double d;

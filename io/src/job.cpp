@@ -631,14 +631,10 @@ std::vector<int> ResolveFaces(const std::vector<FaceRef>& refs, const std::strin
   return faces;
 }
 
-}  // namespace
-
-std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model) {
-  return ResolveFaces(spec.faces, spec.faces_key, spec, model);
-}
-
-std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepModel& model) {
-  const std::vector<int> finished = JobFaces(spec, model);
+// The faces the tool must not go into besides the job's (`finished`): check_faces. Throws
+// dtis::Error naming the key for a face the job also finishes.
+std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepModel& model,
+                                  const std::vector<int>& finished) {
   const auto is_finished = [&](int k) {
     return std::find(finished.begin(), finished.end(), k) != finished.end();
   };
@@ -659,6 +655,12 @@ std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepM
   return check;
 }
 
+}  // namespace
+
+std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model) {
+  return ResolveFaces(spec.faces, spec.faces_key, spec, model);
+}
+
 std::string DescribeFaces(const SurfaceSpec& spec) {
   std::vector<std::string> parts;
   for (const FaceRef& f : spec.faces) parts.push_back(Describe(f));
@@ -672,23 +674,25 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
   }
   if (phase) phase("reading STEP");
   const geometry::StepModel model = geometry::StepModel::Load(spec.step_file);
-  std::vector<geometry::NamedFace> placed = Placed(spec, model, JobFaces(spec, model));
-  std::vector<geometry::NamedFace> others = Placed(spec, model, CheckFaceIndices(spec, model));
+  const std::vector<int> finished = JobFaces(spec, model);
+  const std::vector<geometry::NamedFace> placed = Placed(spec, model, finished);
+  // The job's faces, then the ones it checks besides them: links clear them all, and the tool
+  // finishing one face must go into none of the others.
+  std::vector<geometry::NamedFace> all = placed;
+  for (auto& f : Placed(spec, model, CheckFaceIndices(spec, model, finished))) {
+    all.push_back(std::move(f));
+  }
+  std::optional<geometry::CheckFaces> checks;  // (a face's box costs a millisecond or more)
+  if (all.size() > 1) {
+    checks.emplace(all, spec.tool, spec.tool_length_mm, spec.check_tolerance_mm);
+  }
   SurfaceSetup setup;
-  setup.checked_faces = static_cast<int>(others.size() + placed.size()) - 1;
+  setup.checked_faces = static_cast<int>(all.size()) - 1;
   if (phase) phase("tracing passes");
   // Face after face, each with the whole strategy; their passes and stretches left out in turn.
-  // The tool finishing one face must not go into the checked faces, nor into the job's others.
   for (std::size_t k = 0; k < placed.size(); ++k) {
     strategies::StrategySpec strategy = spec.strategy;
-    std::vector<geometry::NamedFace> check = others;
-    for (std::size_t i = 0; i < placed.size(); ++i) {
-      if (i != k) check.push_back(placed[i]);
-    }
-    if (!check.empty()) {
-      strategy.check = std::make_shared<const geometry::CheckFaces>(
-          std::move(check), spec.tool, spec.tool_length_mm, spec.check_tolerance_mm);
-    }
+    if (checks) strategy.check = std::make_shared<const geometry::CheckFaces>(checks->Without(k));
     const geometry::FaceSurface face(placed[k].face, placed[k].where);
     strategies::PassList one = strategies::BuildPasses(face, spec.tool, spec.orientation, strategy);
     if (k == 0) {
@@ -701,10 +705,8 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
       setup.passes.unreachable.push_back(std::move(u));
     }
   }
-  // Links clear the checked faces too.
-  for (auto& f : others) placed.push_back(std::move(f));
   setup.link_heights = std::make_shared<const geometry::LinkHeights>(
-      std::move(placed), spec.tool.radius, spec.clearance_mm);
+      std::move(all), spec.tool.radius, spec.clearance_mm);
   setup.clearance_mm = spec.clearance_mm;
   setup.pass_options = job.vpop;
   setup.link_options = job.vpop;

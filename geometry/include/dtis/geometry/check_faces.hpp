@@ -16,10 +16,13 @@
 // a sample, and the distance to the tool changes by at most the distance moved, so every face
 // that goes into the tool has a sample less than c outside it: from each such sample (the closest
 // of each block of 16 x 16) the distance is minimised on the exact face (descent in (u, v),
-// staying on the trimmed face), and what is found inside is a hit.
+// projected onto the face's UV box), and what is found inside is a hit. A descent stops at a
+// trimming loop, so a trimmed face's loops are sampled too, a sixteenth of the grid's spacing
+// apart.
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -51,20 +54,20 @@ class CheckFaces {
   CheckFaces(std::vector<NamedFace> faces, const Tool& tool, double length_mm, double tolerance_mm);
   ~CheckFaces();
 
+  // The same faces less the one at `except` (its place in the list given), sharing their samples:
+  // a job of several faces checks each against the others without sampling any twice.
+  CheckFaces Without(std::size_t except) const;
+
   // The deepest point found of a face inside the tool with tip `tip` and unit axis `axis`, if
   // deeper than the tolerance. Thread-safe.
   std::optional<Hit> Into(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis) const;
-
-  bool Empty() const { return faces_.empty(); }
-  double ToleranceMm() const { return tolerance_mm_; }
-  double LengthMm() const { return length_mm_; }
 
  private:
   struct Sampled;
   struct Face;
   const Sampled& Samples(const Face& face) const;
 
-  std::vector<std::unique_ptr<Face>> faces_;
+  std::vector<std::shared_ptr<const Face>> faces_;
   Tool tool_;
   double length_mm_, tolerance_mm_;
   double spacing_mm_;  // the samples' spacing asked for

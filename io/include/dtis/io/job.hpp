@@ -201,9 +201,6 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
 // The faces a surface job names, as numbers of its STEP file's faces, in the job's order. Throws
 // dtis::Error naming the job's key for a name no face has or a face given twice.
 std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model);
-// The faces the tool must not go into besides the job's (check_faces), as numbers. Throws
-// dtis::Error naming the key for a face the job also finishes.
-std::vector<int> CheckFaceIndices(const SurfaceSpec& spec, const geometry::StepModel& model);
 // "face 3", "faces 3, 'floor' (1, 4)": the job's faces as it gives them.
 std::string DescribeFaces(const SurfaceSpec& spec);
 // A surface job's faces as triangles, placed as the job places them (for reports).
