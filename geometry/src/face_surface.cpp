@@ -207,14 +207,18 @@ bool FaceSurface::InBox(double u, double v) const {
   return u >= u0_ - tol && u <= u1_ + tol && v >= v0_ - tol && v <= v1_ + tol;
 }
 
+FaceSurface::TrimGrid::Cell FaceSurface::GridCell(double u, double v) const {
+  const int n = grid_.n;
+  const int x = std::clamp(static_cast<int>((u - u0_) / (u1_ - u0_) * n), 0, n - 1);
+  const int y = std::clamp(static_cast<int>((v - v0_) / (v1_ - v0_) * n), 0, n - 1);
+  return grid_.cells[static_cast<std::size_t>(y * n + x)];
+}
+
 bool FaceSurface::Inside(double u, double v) const {
   if (!InBox(u, v)) return false;
   if (!classifier_) return true;
   if (grid_.n > 0) {
-    const int n = grid_.n;
-    const int x = std::clamp(static_cast<int>((u - u0_) / (u1_ - u0_) * n), 0, n - 1);
-    const int y = std::clamp(static_cast<int>((v - v0_) / (v1_ - v0_) * n), 0, n - 1);
-    const TrimGrid::Cell cell = grid_.cells[static_cast<std::size_t>(y * n + x)];
+    const TrimGrid::Cell cell = GridCell(u, v);
     if (cell != TrimGrid::kBoundary) return cell == TrimGrid::kIn;
   }
   return InsideByClassifier(u, v);
@@ -224,10 +228,7 @@ bool FaceSurface::SurelyOutside(double u, double v) const {
   if (!InBox(u, v)) return true;
   if (!classifier_) return false;
   if (grid_.n == 0) return !InsideByClassifier(u, v);
-  const int n = grid_.n;
-  const int x = std::clamp(static_cast<int>((u - u0_) / (u1_ - u0_) * n), 0, n - 1);
-  const int y = std::clamp(static_cast<int>((v - v0_) / (v1_ - v0_) * n), 0, n - 1);
-  return grid_.cells[static_cast<std::size_t>(y * n + x)] == TrimGrid::kOut;
+  return GridCell(u, v) == TrimGrid::kOut;
 }
 
 bool FaceSurface::InsideByClassifier(double u, double v) const {

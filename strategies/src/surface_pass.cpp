@@ -491,12 +491,12 @@ PathSample SurfacePass::At(const PathState& from, double s) const {
     return nullptr;
   };
   const Bridge* hop = next_bridge();
-  // A pass may skim the boundary between its ends by what the trace's step cannot see; more than
-  // this off the face is another pass.
-  constexpr double kOffFaceMm = 1e-2;
   // The march and the builder's trace sum their arcs over different steps: they agree to far
   // better than this. Within it of an end, the face's boundary is that end.
   constexpr double kSnapMm = 1e-4;
+  // A pass may skim the boundary between its ends by what the trace's step cannot see; more than
+  // this off the face is another pass.
+  constexpr double kOffFaceMm = 1e-2;
   bool stalled = false;
   double longest = options_.max_step_mm;
   for (;;) {

@@ -101,6 +101,8 @@ class FaceSurface {
   };
   TrimGrid grid_;
   void BuildTrimGrid();
+  // The grid's cell holding (u, v), a point of the UV box (the grid built).
+  TrimGrid::Cell GridCell(double u, double v) const;
 };
 
 }  // namespace dtis::geometry
