@@ -126,6 +126,11 @@ class Builder {
       }
       if (open) piece(from, s0, c.end, c.length);
     }
+    if (list.passes.empty() && list.unreachable.empty() && !spec_.bounds) {
+      // Every crossing shorter than a piece is (a line grazing the face's edge).
+      throw Error("{}: no pass of the {} strategy crosses the face for more than {} mm",
+                  face_.Where(), StrategySpec::KindName(spec_.kind), kMinPieceMm);
+    }
     if (list.passes.empty() && list.unreachable.empty()) {
       const Eigen::Vector3d& lo = spec_.bounds->min;
       const Eigen::Vector3d& hi = spec_.bounds->max;
