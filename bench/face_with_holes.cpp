@@ -8,54 +8,18 @@
 #include <BRepBuilderAPI_MakeWire.hxx>
 #include <BRepLib.hxx>
 #include <Geom2d_Circle.hxx>
-#include <GeomAPI_PointsToBSpline.hxx>
-#include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
-#include <Message.hxx>
-#include <Message_Messenger.hxx>
-#include <STEPControl_Writer.hxx>
-#include <TColStd_Array1OfInteger.hxx>
-#include <TColStd_Array1OfReal.hxx>
-#include <TColgp_Array1OfPnt.hxx>
-#include <TColgp_Array2OfPnt.hxx>
 #include <TopoDS_Face.hxx>
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <gp_Circ2d.hxx>
-#include <numbers>
 #include <stdexcept>
+
+#include "fixture_shapes.hpp"
 
 namespace dtis::bench {
 namespace {
-
-// The ruled surface between two waves along y at x = 0 and x = 60, a third of a period apart.
-Handle(Geom_BSplineSurface) WavySurface() {
-  Handle(Geom_BSplineCurve) wave[2];
-  for (int k = 0; k < 2; ++k) {
-    constexpr int kPoints = 41;
-    TColgp_Array1OfPnt points(1, kPoints);
-    for (int i = 1; i <= kPoints; ++i) {
-      const double y = 60.0 * (i - 1) / (kPoints - 1);
-      points(i) =
-          gp_Pnt(60.0 * k, y,
-                 3.0 * std::sin(2.0 * std::numbers::pi * y / 30.0 + k * std::numbers::pi / 3));
-    }
-    wave[k] = GeomAPI_PointsToBSpline(points, 3, 3, GeomAbs_C2, 1e-4).Curve();
-  }
-  const int n = wave[0]->NbPoles();
-  TColgp_Array2OfPnt poles(1, 2, 1, n);
-  for (int k = 0; k < 2; ++k) {
-    for (int i = 1; i <= n; ++i) poles(k + 1, i) = wave[k]->Pole(i);
-  }
-  TColStd_Array1OfReal u_knots(1, 2), v_knots(1, wave[0]->NbKnots());
-  TColStd_Array1OfInteger u_mults(1, 2), v_mults(1, wave[0]->NbKnots());
-  u_knots(1) = 0.0, u_knots(2) = 1.0, u_mults(1) = u_mults(2) = 2;
-  wave[0]->Knots(v_knots);
-  wave[0]->Multiplicities(v_mults);
-  return new Geom_BSplineSurface(poles, u_knots, v_knots, u_mults, v_mults, 1, 3);
-}
 
 std::filesystem::path& Folder() {
   static std::filesystem::path folder;
@@ -70,7 +34,7 @@ void RemoveFolder() {
 }  // namespace
 
 std::string WriteFaceWithHolesJob() {
-  const Handle(Geom_BSplineSurface) surface = WavySurface();
+  const Handle(Geom_BSplineSurface) surface = test::WavyRuledSurface();
   BRepBuilderAPI_MakeFace face(surface, 1e-7);
   // Each hole a circle in (u, v) (u across 60 mm, v along about 60 mm), clockwise: inside the
   // face's outer loop.
@@ -85,14 +49,7 @@ std::string WriteFaceWithHolesJob() {
   std::filesystem::create_directories(Folder());
   std::atexit(RemoveFolder);
   const std::string step = (Folder() / "wavy_with_holes.stp").string();
-  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
-  const Message_SequenceOfPrinters printers = messenger->Printers();
-  messenger->ChangePrinters().Clear();  // the writer's statistics
-  STEPControl_Writer writer;
-  const bool written = writer.Transfer(face.Face(), STEPControl_AsIs) == IFSelect_RetDone &&
-                       writer.Write(step.c_str()) == IFSelect_RetDone;
-  messenger->ChangePrinters() = printers;
-  if (!written) throw std::runtime_error("could not write " + step);
+  test::WriteStep(face.Face(), step);
   const std::string job = (Folder() / "wavy_with_holes.toml").string();
   std::ofstream(job) << fmt::format(R"(name = "wavy_with_holes"
 machine = "{}/samples/machines/mikron_ucp710_xyz.toml"

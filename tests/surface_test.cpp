@@ -26,9 +26,6 @@
 #include <Geom_RectangularTrimmedSurface.hxx>
 #include <Geom_SphericalSurface.hxx>
 #include <Geom_Surface.hxx>
-#include <Message.hxx>
-#include <Message_Messenger.hxx>
-#include <STEPControl_Writer.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
@@ -54,6 +51,7 @@
 #include "dtis/io/job.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
+#include "fixture_shapes.hpp"
 #include "test_support.hpp"
 
 namespace dtis {
@@ -1131,36 +1129,9 @@ TEST(SurfacePass, APassAcrossASpheresPoleGoesOver) {
   EXPECT_TRUE(over);
 }
 
-// A wavy ruled B-spline face: between z = 3 sin(2 pi y / 30) along x = 0 and the same wave a sixth
-// of a period on along x = 60 (valleys of radius 7.6 mm), y in [0, 60].
+// The wavy ruled B-spline face (wavy_surface.hpp) over its whole domain.
 TopoDS_Face WavyRuledFace() {
-  Handle(Geom_BSplineCurve) wave[2];
-  for (int k = 0; k < 2; ++k) {
-    constexpr int kPoints = 41;
-    TColgp_Array1OfPnt points(1, kPoints);
-    for (int i = 1; i <= kPoints; ++i) {
-      const double y = 60.0 * (i - 1) / (kPoints - 1);
-      points(i) =
-          gp_Pnt(60.0 * k, y,
-                 3.0 * std::sin(2.0 * std::numbers::pi * y / 30.0 + k * std::numbers::pi / 3));
-    }
-    wave[k] = GeomAPI_PointsToBSpline(points, 3, 3, GeomAbs_C2, 1e-4).Curve();
-  }
-  const int n = wave[0]->NbPoles();
-  EXPECT_EQ(wave[1]->NbPoles(), n);
-  TColgp_Array2OfPnt poles(1, 2, 1, n);
-  for (int k = 0; k < 2; ++k) {
-    for (int i = 1; i <= n; ++i) poles(k + 1, i) = wave[k]->Pole(i);
-  }
-  TColStd_Array1OfReal u_knots(1, 2), v_knots(1, wave[0]->NbKnots());
-  TColStd_Array1OfInteger u_mults(1, 2), v_mults(1, wave[0]->NbKnots());
-  u_knots(1) = 0.0, u_knots(2) = 1.0, u_mults(1) = u_mults(2) = 2;
-  wave[0]->Knots(v_knots);
-  wave[0]->Multiplicities(v_mults);
-  return BRepBuilderAPI_MakeFace(Handle(Geom_BSplineSurface)(new Geom_BSplineSurface(
-                                     poles, u_knots, v_knots, u_mults, v_mults, 1, 3)),
-                                 1e-7)
-      .Face();
+  return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face();
 }
 
 TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
@@ -1229,14 +1200,7 @@ std::string WriteNamedFaces(const std::string& name,
   builder.MakeCompound(all);
   for (const auto& f : faces) builder.Add(all, f.first);
   const std::string unnamed = test::Scratch(name + "_unnamed.stp");
-  // (Quietly: the writer prints its statistics through OpenCASCADE's messenger.)
-  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
-  const Message_SequenceOfPrinters printers = messenger->Printers();
-  messenger->ChangePrinters().Clear();
-  STEPControl_Writer writer;
-  EXPECT_EQ(writer.Transfer(all, STEPControl_AsIs), IFSelect_RetDone);
-  EXPECT_EQ(writer.Write(unnamed.c_str()), IFSelect_RetDone);
-  messenger->ChangePrinters() = printers;
+  test::WriteStep(all, unnamed);
   std::ostringstream text;
   text << std::ifstream(unnamed).rdbuf();
   std::string step = text.str();

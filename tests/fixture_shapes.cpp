@@ -1,0 +1,56 @@
+#include "fixture_shapes.hpp"
+
+#include <GeomAPI_PointsToBSpline.hxx>
+#include <Geom_BSplineCurve.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <STEPControl_Writer.hxx>
+#include <TColStd_Array1OfInteger.hxx>
+#include <TColStd_Array1OfReal.hxx>
+#include <TColgp_Array1OfPnt.hxx>
+#include <TColgp_Array2OfPnt.hxx>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace dtis::test {
+
+Handle(Geom_BSplineSurface) WavyRuledSurface() {
+  Handle(Geom_BSplineCurve) wave[2];
+  for (int k = 0; k < 2; ++k) {
+    constexpr int kPoints = 41;
+    TColgp_Array1OfPnt points(1, kPoints);
+    for (int i = 1; i <= kPoints; ++i) {
+      const double y = 60.0 * (i - 1) / (kPoints - 1);
+      points(i) =
+          gp_Pnt(60.0 * k, y,
+                 3.0 * std::sin(2.0 * std::numbers::pi * y / 30.0 + k * std::numbers::pi / 3));
+    }
+    wave[k] = GeomAPI_PointsToBSpline(points, 3, 3, GeomAbs_C2, 1e-4).Curve();
+  }
+  const int n = wave[0]->NbPoles();
+  if (wave[1]->NbPoles() != n) throw std::logic_error("the two waves have different poles");
+  TColgp_Array2OfPnt poles(1, 2, 1, n);
+  for (int k = 0; k < 2; ++k) {
+    for (int i = 1; i <= n; ++i) poles(k + 1, i) = wave[k]->Pole(i);
+  }
+  TColStd_Array1OfReal u_knots(1, 2), v_knots(1, wave[0]->NbKnots());
+  TColStd_Array1OfInteger u_mults(1, 2), v_mults(1, wave[0]->NbKnots());
+  u_knots(1) = 0.0, u_knots(2) = 1.0, u_mults(1) = u_mults(2) = 2;
+  wave[0]->Knots(v_knots);
+  wave[0]->Multiplicities(v_mults);
+  return new Geom_BSplineSurface(poles, u_knots, v_knots, u_mults, v_mults, 1, 3);
+}
+
+void WriteStep(const TopoDS_Shape& shape, const std::string& path) {
+  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
+  const Message_SequenceOfPrinters printers = messenger->Printers();
+  messenger->ChangePrinters().Clear();
+  STEPControl_Writer writer;
+  const bool written = writer.Transfer(shape, STEPControl_AsIs) == IFSelect_RetDone &&
+                       writer.Write(path.c_str()) == IFSelect_RetDone;
+  messenger->ChangePrinters() = printers;
+  if (!written) throw std::runtime_error("could not write " + path);
+}
+
+}  // namespace dtis::test

@@ -1,0 +1,19 @@
+// Shapes the surface tests and the benchmarks make in code (no bundled part has them), and how
+// they write them as STEP files.
+#pragma once
+
+#include <Geom_BSplineSurface.hxx>
+#include <TopoDS_Shape.hxx>
+#include <string>
+
+namespace dtis::test {
+
+// Ruled between z = 3 sin(2 pi y / 30) along x = 0 and the same wave a sixth of a period on along
+// x = 60 (valleys of radius 7.6 mm), y in [0, 60]; u across (x = 60 u), v along.
+Handle(Geom_BSplineSurface) WavyRuledSurface();
+
+// Writes `shape` as a STEP file at `path`, quietly (OpenCASCADE's writer prints its statistics
+// through the messenger). Throws std::runtime_error if it cannot.
+void WriteStep(const TopoDS_Shape& shape, const std::string& path);
+
+}  // namespace dtis::test
