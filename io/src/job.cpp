@@ -661,10 +661,14 @@ std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& mo
   return ResolveFaces(spec.faces, spec.faces_key, spec, model);
 }
 
-std::string DescribeFaces(const SurfaceSpec& spec) {
+std::string FaceRefsText(const SurfaceSpec& spec) {
   std::vector<std::string> parts;
   for (const FaceRef& f : spec.faces) parts.push_back(Describe(f));
-  return fmt::format("face{} {}", spec.faces.size() == 1 ? "" : "s", fmt::join(parts, ", "));
+  return fmt::format("{}", fmt::join(parts, ", "));
+}
+
+std::string DescribeFaces(const SurfaceSpec& spec) {
+  return fmt::format("face{} {}", spec.faces.size() == 1 ? "" : "s", FaceRefsText(spec));
 }
 
 SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase) {

@@ -500,8 +500,7 @@ std::vector<ReportFact> JobFacts(const Job& job, const Machine& machine) {
   if (job.surface) {
     const SurfaceSpec& s = *job.surface;
     facts.push_back({"part", s.step_file});
-    const std::string faces = DescribeFaces(s);
-    facts.push_back({faces.substr(0, faces.find(' ')), faces.substr(faces.find(' ') + 1)});
+    facts.push_back({s.faces.size() == 1 ? "face" : "faces", FaceRefsText(s)});
     facts.push_back({"tool", s.tool.Describe()});
     facts.push_back({"orientation", s.orientation.Describe()});
     facts.push_back({"strategy", strategies::StrategySpec::KindName(s.strategy.kind)});

@@ -201,7 +201,9 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
 // The faces a surface job names, as numbers of its STEP file's faces, in the job's order. Throws
 // dtis::Error naming the job's key for a name no face has or a face given twice.
 std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model);
-// "face 3", "faces 3, 'floor' (1, 4)": the job's faces as it gives them.
+// "3", "3, 'floor'": the job's faces as it gives them.
+std::string FaceRefsText(const SurfaceSpec& spec);
+// "face 3", "faces 3, 'floor'".
 std::string DescribeFaces(const SurfaceSpec& spec);
 // A surface job's faces as triangles, placed as the job places them (for reports).
 geometry::FaceMesh MeshJobSurface(const Job& job);
