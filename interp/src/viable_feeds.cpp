@@ -23,6 +23,10 @@ constexpr double kMinRepairMargin = 0.5;
 // A chord between two boundary points may read the boundary this much low (relative), no more.
 constexpr double kChordTolerance = 2e-4;
 
+// Grid points a release of the deceleration is followed over before the closed form at the jerk
+// limit decides.
+constexpr int kMaxReleaseNodes = 64;
+
 // The time t > 0 in which a motion starting with feed v, acceleration a and constant jerk j
 // covers the distance h (v t + a t^2 / 2 + j t^3 / 6 = h, the first root), or NaN when it comes to
 // rest first. Newton from h / v.
@@ -108,6 +112,11 @@ ViableFeeds::ViableFeeds(const PathSource& path, const Machine& machine,
           ? f * std::max(std::sqrt(f / jmin), f / (2.0 * amin) + amin / (2.0 * jmin))
           : 10.0;
   window_ = std::max(6.0 * stop, 20.0);
+}
+
+void ViableFeeds::Append(Node node) {
+  node.id = nodes_.empty() ? 0 : nodes_.back().id + 1;
+  nodes_.push_back(std::move(node));
 }
 
 double ViableFeeds::End() const { return nodes_.empty() ? 0.0 : nodes_.back().s; }
@@ -199,6 +208,62 @@ double ViableFeeds::Curved(const std::vector<Point>& b, std::size_t i, double a)
          (-2.0 * t3 + 3.0 * t2) * r.v + (t3 - t2) * m1;
 }
 
+double ViableFeeds::LeastJerk(const Node& n, double v, double deceleration) const {
+  const double m = n.margin;
+  double least = limits_.tangential_jerk * m;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double curvature =
+        v * (std::abs(n.d3[i]) * v * v + 3.0 * std::abs(n.d2[i]) * deceleration);
+    const double room = limits_.j[i] * m - curvature;
+    const double g = std::abs(n.d1[i]);
+    if (room < 0.0) return 0.0;
+    if (g > 1e-12) least = std::min(least, room / g);
+  }
+  return least;
+}
+
+double ViableFeeds::ReleaseFeed(const Node& n, double s, double v, double a) const {
+  // Walk the grid from n with the largest jerk the axes allow at each grid point (where the path
+  // turns, its curvature terms give the axes more room than their jerk limits alone).
+  auto it = nodes_.begin() + (n.id - nodes_.front().id);
+  if (v > 0.0) {
+    // First a bound that needs no walk: the release loses at most a^2 / (2 j) of the feed when
+    // the jerk stays at least j, and the axes give at least LeastJerk over the states the release
+    // passes through (feed at most v, deceleration at most -a). At that jerk the release is over
+    // within -a / j, at most v (-a / j) along the path.
+    const double need = a * a / (2.0 * v);
+    double least = INFINITY;
+    auto q = it;
+    for (; q != nodes_.end(); ++q) {
+      least = std::min(least, LeastJerk(*q, v, -a));
+      if (least < need) break;
+      if (q->s >= s + v * -a / least) break;
+    }
+    if (least >= need) return v - a * a / (2.0 * least);
+  }
+  for (int k = 0; k < kMaxReleaseNodes; ++k) {
+    const Node& here = *it;
+    double lo, hi;
+    double j = here.jerk_cap;
+    if (Admissible(here, v, a, &lo, &hi)) j = hi;
+    if (!(j > 0.0)) j = 1e-3 * here.jerk_cap;
+    const double released = v - a * a / (2.0 * j);
+    ++it;
+    if (it == nodes_.end() || released < 0.0) return released;
+    const double h = it->s - s;
+    if (h > 0.0) {
+      const double t = -a / j;
+      if (t * (v + t * (a / 2.0 + t * j / 6.0)) <= h) return released;
+      double v2, a2;
+      if (!Forward(v, a, j, h, &v2, &a2)) return released;
+      v = v2, a = a2;
+      if (a >= 0.0) return v;
+    }
+    s = it->s;
+  }
+  return v - a * a / (2.0 * it->jerk_cap);
+}
+
 double ViableFeeds::SlackTowards(const Node& n, double s, const Node& next, double v,
                                  double a) const {
   const auto& b = next.boundary;
@@ -217,8 +282,8 @@ double ViableFeeds::SlackTowards(const Node& n, double s, const Node& next, doub
   // Braked so hard that the feed runs out before the deceleration is released: not viable
   // whatever lies ahead (the viable set's lower side).
   if (a < 0.0) {
-    const double need = a * a / (2.0 * n.jerk_cap);
-    if (v < need) return v - need;
+    const double left = ReleaseFeed(n, s, v, a);
+    if (left < 0.0) return left;
   }
   const double h = next.s - s;
   if (h <= 0.0) {
@@ -264,9 +329,10 @@ double ViableFeeds::Slack(double s, double v, double a) const {
 double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
   const double top = Clip(n, a, n.feed_cap);
   if (top < 0.0) return -1.0;
-  // A braking state must keep the feed its release takes away.
-  const double floor = a < 0.0 ? a * a / (2.0 * n.jerk_cap) : 0.0;
-  if (top < floor) return -1.0;
+  // A braking state must keep the feed its release takes away: if even the top cannot, none can
+  // (below it, the slack says which can).
+  if (a < 0.0 && ReleaseFeed(n, n.s, top, a) < 0.0) return -1.0;
+  const double floor = 0.0;
   const auto slack = [&](double v) { return SlackTowards(n, n.s, next, v, a); };
   double bad = top, f_bad = slack(top);
   if (f_bad >= 0.0) return top;
@@ -354,7 +420,7 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
     for (int round = 0; round < 4; ++round) {
       if (!Backward(e.v, e.a, j, h, &v, &a)) return;
       if (std::abs(a) > 2.0 * a_range) return;
-      if (a < 0.0 && v < a * a / (2.0 * n->jerk_cap)) return;
+      if (a < 0.0 && ReleaseFeed(*n, n->s, v, a) < 0.0) return;
       double lo0, hi0;
       if (!Admissible(*n, v, a, &lo0, &hi0)) {
         const double c = Clip(*n, a, v);
@@ -470,7 +536,7 @@ ViableFeeds::Point ViableFeeds::Spawn(const Node& n, const Node& next, double a,
     const double v2 = Boundary(next.boundary, a2);
     double pv, pa;
     if (v2 >= 0.0 && Backward(v2, a2, j, next.s - n.s, &pv, &pa) &&
-        !(pa < 0.0 && pv < pa * pa / (2.0 * n.jerk_cap))) {
+        !(pa < 0.0 && ReleaseFeed(n, n.s, pv, pa) < 0.0)) {
       const double c = Clip(n, pa, pv);
       if (c >= 0.0) return {pa, c};
     }
@@ -600,10 +666,10 @@ void ViableFeeds::Extend(double to) {
         // The piece after the break: same point, right-sided derivatives.
         Node right = Sample(s, n.state, n.q, 1);
         n.break_after = true;
-        nodes_.push_back(std::move(n));
-        nodes_.push_back(std::move(right));
+        Append(std::move(n));
+        Append(std::move(right));
       } else {
-        nodes_.push_back(std::move(n));
+        Append(std::move(n));
       }
       break;
     }
@@ -726,7 +792,7 @@ void ViableFeeds::Advance(double s, const PathState& state, const AxisVector& q,
     path_.Reach(s + window_);
     length_ = path_.Length();
     Node first = Sample(s, state, q, 1);
-    nodes_.push_back(std::move(first));
+    Append(std::move(first));
     Extend(s + window_);
     return;
   }

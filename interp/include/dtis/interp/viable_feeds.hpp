@@ -115,7 +115,10 @@ class ViableFeeds {
     bool break_after = false;       // the path's derivatives jump between this node and the next
     double margin = 1.0;            // fraction of the limits planned with here (repairs lower it)
     std::vector<Point> boundary;    // v_max(a), sorted by a
+    long id = 0;                    // position in the grid since the first node
   };
+  // Adds a node at the end of the grid.
+  void Append(Node node);
 
   // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false.
   bool Admissible(const Node& n, double v, double a, double* lo, double* hi) const;
@@ -129,6 +132,13 @@ class ViableFeeds {
   // A new boundary point of n near acceleration a (v_guess: the feed there, roughly).
   Point Spawn(const Node& n, const Node& next, double a, double v_guess, double peak_a,
               double t) const;
+  // The feed left once the deceleration -a > 0 of the state (v, a) at arc length s on node n's
+  // stretch is released with the largest jerk the axes allow along the grid (< 0: the feed runs
+  // out first, the state is not viable whatever lies ahead).
+  double ReleaseFeed(const Node& n, double s, double v, double a) const;
+  // The least tangential jerk the axes allow at n to any state with feed at most v and
+  // deceleration at most `deceleration` (>= 0): the jerk a release there can count on.
+  double LeastJerk(const Node& n, double v, double deceleration) const;
   // The slack of (v, a) at arc length s on node n's stretch, towards node `next`.
   double SlackTowards(const Node& n, double s, const Node& next, double v, double a) const;
   // The boundary at the end of the grid (rest there).
