@@ -605,6 +605,30 @@ TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
   EXPECT_NEAR(r.setpoints.back().s, *plan.paths.front()->Length(), 1e-9);
 }
 
+// Segments join when the next starts within a hair (1e-9 relative) of where the previous one
+// stopped, as a path that ends at rest within its end tolerance does. The next segment's first
+// step from rest is a whole jerk limit's worth; measured from its own start instead of where the
+// machine stopped, it carried the hair too, over dt^3 (here 200 mm/s^3 on 5 000 mm/s^3).
+TEST(GcodeProgram, ASegmentStartingAHairAwayKeepsEveryLimit) {
+  const auto machine = Cartesian(500, 2500, 5000);
+  const Eigen::Vector3d z(0, 0, 1);
+  const double hair = 2e-7;  // below 1e-9 (1 + 310 mm)
+  const geometry::LinePath first({300, 0, 0}, {310, 0, 0}, z);
+  const geometry::LinePath second({310 + hair, 0, 0}, {320, 0, 0}, z);
+  interp::VpopOptions o;
+  o.feed_mm_s = 50.0;
+  for (const auto planner : {interp::PlannerKind::kVpop, interp::PlannerKind::kLookAhead}) {
+    o.planner = planner;
+    const interp::ProgramResult r =
+        interp::PlanProgram({{&first, o, "first"}, {&second, o, "second"}}, *machine);
+    io::TableSink sink(*machine, o.period_s);
+    for (const auto& sp : r.setpoints) sink.Accept(sp);
+    const auto report = interp::Verify(sink.Table(), *machine);
+    EXPECT_TRUE(report.Passed()) << interp::PlannerName(planner) << ": " << report.worst;
+    EXPECT_NEAR(r.setpoints.back().q[0], 320.0, 1e-9);
+  }
+}
+
 // Blended (the default), a retract-traverse-plunge link is one chain: the machine does not stop at
 // the G0 vertices, and the smoothed corners stay within the contour tolerance. With blend_rapids
 // off, three straight moves, each from rest to rest.

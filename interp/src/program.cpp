@@ -114,13 +114,14 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     if (planned[i].error) std::rethrow_exception(planned[i].error);
     if (k > 0) {
       const AxisVector& previous = result.setpoints.back().q;
-      if (!Align(machine, previous, &planned[i].rows)) {
-        // Another branch than where the previous segment ended: plan again from there.
+      if (!Align(machine, previous, &planned[i].rows) || planned[i].rows.front().q != previous) {
+        // Another branch than where the previous segment ended, or a hair away from it (the
+        // previous segment stopped within its end tolerance): plan again from there.
         VpopOptions o = segments[i].options;
         o.previous_q = previous;
         PlanOne(segments[i], machine, o, &planned[i]);
         if (planned[i].error) std::rethrow_exception(planned[i].error);
-        if (!Align(machine, previous, &planned[i].rows)) {
+        if (!Align(machine, previous, &planned[i].rows) || planned[i].rows.front().q != previous) {
           const AxisVector gap = planned[i].rows.front().q - previous;
           Eigen::Index axis = 0;
           gap.cwiseAbs().maxCoeff(&axis);

@@ -160,6 +160,10 @@ constexpr int kMaxRepairsHere = 8;
 constexpr long kMaxRepairs = 200;
 inline double kRepairNeighbourhood(double v, double dt) { return std::max(20.0 * v * dt, 1e-3); }
 
+// A path's first pose this close to the axis positions held before it (relative) starts from
+// them: the tolerance within which a program's segments join (TurnShift).
+constexpr double kStartHair = 1e-9;
+
 // Times in a row the planner may come back to rest at the same arc length, its step from there
 // halved each time (2^-30 of the first), before it reports that no step forward is possible.
 constexpr int kMaxStuckRetries = 30;
@@ -1244,6 +1248,17 @@ VpopSummary Planner::Run() {
   const InverseResult r =
       machine_.Inverse(s0.pose, o_.previous_q ? &*o_.previous_q : nullptr, &start.q);
   if (r.status != InverseStatus::kOk) FailAt(start, DescribeInverseFailure(machine_, r));
+  if (o_.previous_q && o_.previous_q->size() == start.q.size()) {
+    // A path that starts within a hair of where the machine holds (the previous path ended at
+    // rest within its end tolerance) starts from there: a first step measured from positions
+    // the machine is not at would add that hair, over dt^3, to its jerk.
+    const AxisVector& held = *o_.previous_q;
+    bool hair = true;
+    for (int i = 0; i < n_; ++i) {
+      hair = hair && std::abs(start.q[i] - held[i]) <= kStartHair * (1.0 + std::abs(held[i]));
+    }
+    if (hair) start.q = held;
+  }
   start.limiter = {Limiter::kStart, -1};
   if (o_.start_feed_mm_s > 0.0) {
     // The two periods before the start, on the path behind it, at the start feed.
