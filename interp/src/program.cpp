@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <numbers>
 
@@ -54,6 +55,15 @@ bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpo
 }
 
 }  // namespace
+
+bool StartsWhereHeld(const AxisVector& previous, const AxisVector& first) {
+  constexpr double kUlps = 8.0 * std::numeric_limits<double>::epsilon();
+  if (previous.size() != first.size()) return false;
+  for (Eigen::Index i = 0; i < previous.size(); ++i) {
+    if (std::abs(first[i] - previous[i]) > kUlps * (1.0 + std::abs(previous[i]))) return false;
+  }
+  return true;
+}
 
 std::optional<AxisVector> TurnShift(const Machine& machine, const AxisVector& previous,
                                     const AxisVector& first) {
@@ -114,14 +124,16 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     if (planned[i].error) std::rethrow_exception(planned[i].error);
     if (k > 0) {
       const AxisVector& previous = result.setpoints.back().q;
-      if (!Align(machine, previous, &planned[i].rows) || planned[i].rows.front().q != previous) {
+      if (!Align(machine, previous, &planned[i].rows) ||
+          !StartsWhereHeld(previous, planned[i].rows.front().q)) {
         // Another branch than where the previous segment ended, or a hair away from it (the
         // previous segment stopped within its end tolerance): plan again from there.
         VpopOptions o = segments[i].options;
         o.previous_q = previous;
         PlanOne(segments[i], machine, o, &planned[i]);
         if (planned[i].error) std::rethrow_exception(planned[i].error);
-        if (!Align(machine, previous, &planned[i].rows) || planned[i].rows.front().q != previous) {
+        if (!Align(machine, previous, &planned[i].rows) ||
+            !StartsWhereHeld(previous, planned[i].rows.front().q)) {
           const AxisVector gap = planned[i].rows.front().q - previous;
           Eigen::Index axis = 0;
           gap.cwiseAbs().maxCoeff(&axis);

@@ -396,12 +396,13 @@ class SegmentSink final : public interp::SetpointSink {
     last_index_ = row.index;
     pending_.push_back(Entry{row, segment_, pass_, nullptr});
   }
-  // Whether the segment starts exactly where the previous one ended, give or take whole turns of
-  // continuous axes (a hair away, it is planned again from there, as interp::Stitch does).
+  // Whether the segment starts where the previous one ended, give or take whole turns of
+  // continuous axes and a few ulps (a hair away, it is planned again from there, as
+  // interp::Stitch does).
   bool Align(const AxisVector& first) {
     const std::optional<AxisVector> shift = interp::TurnShift(machine_, *previous_, first);
     if (shift) shift_ = *shift;
-    return shift.has_value() && first + shift_ == *previous_;
+    return shift.has_value() && interp::StartsWhereHeld(*previous_, first + shift_);
   }
 
   const Machine& machine_;

@@ -68,4 +68,10 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
 std::optional<AxisVector> TurnShift(const Machine& machine, const AxisVector& previous,
                                     const AxisVector& first);
 
+// Whether a segment whose first row is at `first` (turns shifted) continues from `previous` as
+// planned: equal but for a few ulps, which the planner's rounding guard absorbs. A hair more (a
+// path that stopped within its end tolerance) would go into the first step's jerk over dt^3:
+// such a segment is planned again from `previous`.
+bool StartsWhereHeld(const AxisVector& previous, const AxisVector& first);
+
 }  // namespace dtis::interp
