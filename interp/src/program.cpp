@@ -45,13 +45,15 @@ void PlanOne(const ProgramSegment& seg, const Machine& machine, const VpopOption
 }
 
 // Shifts continuous rotary axes of `rows` by whole turns so that they start at `previous`.
-// Returns false if some axis still differs (another branch).
+// Returns false if they then do not start where it holds (StartsWhereHeld): another branch, or a
+// hair away.
 bool Align(const Machine& machine, const AxisVector& previous, std::vector<Setpoint>* rows) {
   const std::optional<AxisVector> shift = TurnShift(machine, previous, rows->front().q);
   if (!shift) return false;
-  if (shift->isZero()) return true;
-  for (Setpoint& sp : *rows) sp.q += *shift;
-  return true;
+  if (!shift->isZero()) {
+    for (Setpoint& sp : *rows) sp.q += *shift;
+  }
+  return StartsWhereHeld(previous, rows->front().q);
 }
 
 }  // namespace
@@ -124,16 +126,14 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     if (planned[i].error) std::rethrow_exception(planned[i].error);
     if (k > 0) {
       const AxisVector& previous = result.setpoints.back().q;
-      if (!Align(machine, previous, &planned[i].rows) ||
-          !StartsWhereHeld(previous, planned[i].rows.front().q)) {
+      if (!Align(machine, previous, &planned[i].rows)) {
         // Another branch than where the previous segment ended, or a hair away from it (the
         // previous segment stopped within its end tolerance): plan again from there.
         VpopOptions o = segments[i].options;
         o.previous_q = previous;
         PlanOne(segments[i], machine, o, &planned[i]);
         if (planned[i].error) std::rethrow_exception(planned[i].error);
-        if (!Align(machine, previous, &planned[i].rows) ||
-            !StartsWhereHeld(previous, planned[i].rows.front().q)) {
+        if (!Align(machine, previous, &planned[i].rows)) {
           const AxisVector gap = planned[i].rows.front().q - previous;
           Eigen::Index axis = 0;
           gap.cwiseAbs().maxCoeff(&axis);

@@ -332,7 +332,6 @@ double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
   // A braking state must keep the feed its release takes away: if even the top cannot, none can
   // (below it, the slack says which can).
   if (a < 0.0 && ReleaseFeed(n, n.s, top, a) < 0.0) return -1.0;
-  const double floor = 0.0;
   const auto slack = [&](double v) { return SlackTowards(n, n.s, next, v, a); };
   double bad = top, f_bad = slack(top);
   if (f_bad >= 0.0) return top;
@@ -348,8 +347,8 @@ double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
       bad = guess, f_bad = f;
     }
   }
-  for (int k = 1; k <= 16 && good < 0.0 && bad > floor; ++k) {
-    const double x = std::max(bad * 0.6, floor);
+  for (int k = 1; k <= 16 && good < 0.0 && bad > 0.0; ++k) {
+    const double x = bad * 0.6;
     const double f = slack(x);
     if (f >= 0.0) {
       good = x, f_good = f;

@@ -11,6 +11,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/interp/motion_law.hpp"
+#include "dtis/interp/program.hpp"
 
 namespace dtis::interp {
 
@@ -159,10 +160,6 @@ constexpr int kMaxRepairsHere = 8;
 // Repairs of the look-ahead on one path before every further dead end is backed off from.
 constexpr long kMaxRepairs = 200;
 inline double kRepairNeighbourhood(double v, double dt) { return std::max(20.0 * v * dt, 1e-3); }
-
-// A path's first pose this close to the axis positions held before it (relative) starts from
-// them: the tolerance within which a program's segments join (TurnShift).
-constexpr double kStartHair = 1e-9;
 
 // Times in a row the planner may come back to rest at the same arc length, its step from there
 // halved each time (2^-30 of the first), before it reports that no step forward is possible.
@@ -1250,14 +1247,11 @@ VpopSummary Planner::Run() {
   if (r.status != InverseStatus::kOk) FailAt(start, DescribeInverseFailure(machine_, r));
   if (o_.previous_q && o_.previous_q->size() == start.q.size()) {
     // A path that starts within a hair of where the machine holds (the previous path ended at
-    // rest within its end tolerance) starts from there: a first step measured from positions
-    // the machine is not at would add that hair, over dt^3, to its jerk.
-    const AxisVector& held = *o_.previous_q;
-    bool hair = true;
-    for (int i = 0; i < n_; ++i) {
-      hair = hair && std::abs(start.q[i] - held[i]) <= kStartHair * (1.0 + std::abs(held[i]));
-    }
-    if (hair) start.q = held;
+    // rest within its end tolerance; the hair segments join within, TurnShift) starts from
+    // there: a first step measured from positions the machine is not at would add that hair,
+    // over dt^3, to its jerk.
+    const std::optional<AxisVector> shift = TurnShift(machine_, *o_.previous_q, start.q);
+    if (shift && shift->isZero()) start.q = *o_.previous_q;
   }
   start.limiter = {Limiter::kStart, -1};
   if (o_.start_feed_mm_s > 0.0) {
