@@ -491,6 +491,12 @@ class Builder {
       if (gap) {
         Eigen::Vector2d dir = gap_dir;
         if (!MarchContact(e, cur, full, &dir, &next) || !e.Inside(next.uv)) return end_in_gap();
+        // Back where the gap began: the line's contact points close a loop here (in a valley
+        // narrower than the tool, where it touches on both sides), and the march would go round
+        // it for ever. The line is not followed past it.
+        if (gap->contact_mm > 4.0 * full && (next.p - gap->before.p).norm() < full) {
+          return end_in_gap();
+        }
         const double chord = (next.tip - cur.tip).norm();
         if (fits(next, s + chord)) {
           // The tool fits again: the next piece starts where it does, traced on from there.
