@@ -163,7 +163,8 @@ TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
   const geometry::BSplineFit fit = G52CircleFit();
   const std::vector<io::SplinePass> passes{{&fit.bottom, nullptr, Vector3d::UnitZ()}};
   ASSERT_TRUE(io::PlanarXY(passes, 1e-9));
-  const std::string text = io::FormatLinuxcncNurbs(passes, 3000.0, {20.0, 5.0}, {"circle"});
+  const std::string text =
+      io::FormatLinuxcncNurbs(passes, 3000.0, {20.0, 5.0, nullptr, {}}, {"circle"});
   std::vector<Vector3d> points;
   int order = 0;
   std::istringstream in(text);
@@ -203,7 +204,8 @@ TEST(Exports, LinuxcncNurbsFollowsItsUniformKnotConvention) {
   const auto fs = geometry::SamplePath(tilted, 0.1, "line");
   const auto lf = geometry::FitCubicBSpline(fs, G52FitOptions(), "line");
   try {
-    io::FormatLinuxcncNurbs({{&lf.bottom, nullptr, Vector3d::UnitZ()}}, 3000.0, {20.0, 5.0}, {});
+    io::FormatLinuxcncNurbs({{&lf.bottom, nullptr, Vector3d::UnitZ()}}, 3000.0,
+                            {20.0, 5.0, nullptr, {}}, {});
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("pass 1"), std::string::npos) << e.what();
@@ -219,7 +221,7 @@ TEST(Exports, LinuxcncNurbsReadsBackToTheSameMotion) {
   const geometry::BSplineFit fit = G52CircleFit();
   const std::string file = test::Scratch("circle_g52.ngc");
   std::ofstream(file) << io::FormatLinuxcncNurbs({{&fit.bottom, nullptr, Vector3d::UnitZ()}},
-                                                 3000.0, {20.0, 5.0}, {"circle"});
+                                                 3000.0, {20.0, 5.0, nullptr, {}}, {"circle"});
   const auto machine =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
   const io::GcodeProgram back = io::ReadGcode(file, io::GcodeInterpreter::kRs274ngc);

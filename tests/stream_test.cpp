@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <BRepBuilderAPI_MakeFace.hxx>
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +20,7 @@
 #include "dtis/geometry/curve_path.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
+#include "fixture_shapes.hpp"
 #include "test_support.hpp"
 
 namespace dtis {
@@ -88,6 +90,43 @@ TEST(Stream, EqualsTheRunWithTheSameHorizon) {
       EXPECT_EQ(r.verify.worst_ratio, run.verify.worst_ratio);
       EXPECT_EQ(r.verify.motion_time_s, run.verify.motion_time_s);
     }
+}
+
+// A flat end riding over the valleys of a wavy face (strategies::SurfacePass::
+// RidesOverFromPrevious) streams as the run plans it: the passes are joined by the same straight
+// moves, not linked.
+TEST(Stream, PassesThatRideOverStreamAsTheRunPlansThem) {
+  const std::string step = test::Scratch("wavy_stream.stp");
+  test::WriteStep(
+      BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face(), step);
+  const std::string file = test::Scratch("wavy_stream.toml");
+  std::ofstream(file) << fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+[tool]
+kind = "flat_end"
+radius_mm = 4
+[strategy]
+kind = "plane_cl"
+plane_normal = [1, 0, 0]
+direction = [0, 1, 0]
+stepover_mm = 6
+max_passes = 3
+)",
+                                     test::Source("samples/machines/mikron_ucp710_xyz.toml"), step);
+  io::Job job = io::LoadJob(file);
+  job.vpop.commit_horizon = io::kStreamCommitHorizon;
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  int rides = 0;
+  for (const auto& pass : setup.passes.passes) rides += pass->RidesOverFromPrevious();
+  EXPECT_GE(rides, 1);
+  const io::RunResult run = io::RunJob(job);
+  Capture out(run.machine->AxisCount());
+  const io::StreamResult r = StreamJob(job, *run.machine, &out);
+  EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+  EXPECT_TRUE(out.rows == RowsOf(run.table));  // bit for bit
+  EXPECT_TRUE(r.verify.Passed());
 }
 
 // A G-code job's feed is its F words; the link from where the machine is to its first block moves

@@ -44,6 +44,7 @@
 #include <sstream>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/curve_path.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/occt_convert.hpp"
 #include "dtis/geometry/step_model.hpp"
@@ -503,7 +504,7 @@ void ForPosesAlong(const strategies::PassList& passes, double from, double step,
 // How far the tool at `pose` stands above `face` (from the side `toward` points to at the
 // contact (u, v)), sampled: points of its flat bottom and of the lower outer quarter of its
 // corner, each projected onto the face by OpenCASCADE; samples with no orthogonal projection (off
-// the face's edge) are skipped. The least signed distance.
+// the face's edge, or projected onto it) are skipped. The least signed distance.
 double SampledClearance(const TopoDS_Face& face, const Tool& tool, const Pose& pose,
                         const Eigen::Vector2d& uv, const Eigen::Vector3d& toward) {
   const Handle(Geom_Surface) s = BRep_Tool::Surface(face);
@@ -543,7 +544,10 @@ double SampledClearance(const TopoDS_Face& face, const Tool& tool, const Pose& p
     const gp_Vec nn = su.Crossed(sv);
     if (nn.Magnitude() == 0.0) continue;
     const Eigen::Vector3d normal = side * Eigen::Vector3d(nn.X(), nn.Y(), nn.Z()) / nn.Magnitude();
-    least = std::min(least, (x - Eigen::Vector3d(q.X(), q.Y(), q.Z())).dot(normal));
+    const Eigen::Vector3d off = x - Eigen::Vector3d(q.X(), q.Y(), q.Z());
+    // A point beside the face's edge projects onto the edge, not along the normal there.
+    if (off.cross(normal).norm() > 1e-6 * std::max(off.norm(), 1e-3)) continue;
+    least = std::min(least, off.dot(normal));
   }
   return least;
 }
@@ -557,6 +561,30 @@ void ExpectToolAboveFace(const TopoDS_Face& face, const Tool& tool,
                   EXPECT_GT(SampledClearance(face, tool, smp.pose, c.uv, c.n), -1e-6)
                       << pass.Describe(smp.state);
                 });
+}
+
+// Where a pass rides over from the previous one (RidesOverFromPrevious), the straight move between
+// them (the axis turning as geometry::StraightMoveAxis turns it) keeps the tool above the face,
+// at its quarter points (each takes OpenCASCADE a fifth of a second); the number of such moves.
+int ExpectRidesAboveFace(const TopoDS_Face& face, const Tool& tool,
+                         const strategies::PassList& passes) {
+  int rides = 0;
+  for (std::size_t k = 1; k < passes.passes.size(); ++k) {
+    const strategies::SurfacePass& pass = *passes.passes[k];
+    if (!pass.RidesOverFromPrevious()) continue;
+    ++rides;
+    const Pose a = passes.passes[k - 1]->EndPose(), b = pass.StartPose();
+    strategies::ContactPoint c;
+    EXPECT_EQ(pass.Evaluate(pass.Start(), &c), strategies::EvalStatus::kOk);
+    for (int i = 1; i < 4; ++i) {
+      const double t = i / 4.0;
+      const Pose at{(1.0 - t) * a.tip + t * b.tip,
+                    geometry::StraightMoveAxis(a.tip, b.tip, a.axis, b.axis, t)};
+      EXPECT_GT(SampledClearance(face, tool, at, c.uv, c.n), -1e-6)
+          << "riding over to pass " << pass.Index() << " at " << t;
+    }
+  }
+  return rides;
 }
 
 TEST(SurfacePass, TiltedBullNoseTouchesACurvedFaceWithoutGoingIntoIt) {
@@ -1137,8 +1165,9 @@ TopoDS_Face WavyRuledFace() {
 TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   // What holds today: a ball R3 builds every pass of plane_cl, uv and leading_line, 3-axis and
   // tilted 10 deg, never under the face (3-axis passes planned and verified); a flat bottom (flat
-  // end R4, bull nose R5 r1) cannot follow its valleys and every combination is refused with
-  // where and how deep.
+  // end R4, bull nose R5 r1) cannot follow its valleys: with on_gouge = "stop" every combination
+  // is refused with where and how deep, else the valleys are left out (ridden over where a
+  // straight move keeps the tool out of the face, SurfaceJob.AFlatBottomRidesOver...).
   const TopoDS_Face face = WavyRuledFace();
   const FaceSurface surface(face, "wavy");
   Orientation tilted;
@@ -1167,11 +1196,13 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
           stop.on_gouge = StrategySpec::OnGouge::kStop;
           test::ExpectError([&] { strategies::BuildPasses(surface, tool, o, stop); },
                             {"the tool gouges", "(u, v)"});
-          // Skipping the valleys, the rest is finished without going into the face.
+          // Skipping the valleys or riding over them, the rest is finished without going into
+          // the face.
           spec.max_passes = 3;
           const auto passes = strategies::BuildPasses(surface, tool, o, spec);
           EXPECT_FALSE(passes.unreachable.empty());
           ExpectToolAboveFace(face, tool, passes, 0.1, 0.8);
+          ExpectRidesAboveFace(face, tool, passes);
           continue;
         }
         spec.max_passes = 3;
@@ -1222,26 +1253,31 @@ std::string TwoNamedWavyFaces(const std::string& name) {
              {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "right"}});
 }
 
-// A 3-axis plane_cl job, ball R3, on the STEP file `step`: `surface` gives the face (and more of
-// [surface]), `planes` the strategy's plane_normal, direction and stepover; read as if from
-// `source`.
-io::Job BallJob(const std::string& step, const std::string& surface, const std::string& planes,
-                const std::string& source) {
-  return io::ParseJob(
-      fmt::format(R"(machine = "{}"
+// A 3-axis plane_cl job with `tool` (its [tool] keys) on the STEP file `step`: `surface` gives the
+// face (and more of [surface]), `planes` the strategy's plane_normal, direction and stepover (and
+// more of [strategy]); read as if from `source`.
+io::Job PlaneClJob(const std::string& step, const std::string& surface, const std::string& tool,
+                   const std::string& planes, const std::string& source) {
+  return io::ParseJob(fmt::format(R"(machine = "{}"
 feed_mm_min = 3000
 [surface]
 file = "{}"
 {}
 [tool]
-kind = "ball_end"
-radius_mm = 3
+{}
 [strategy]
 kind = "plane_cl"
 {}
 )",
-                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, surface, planes),
-      source);
+                                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step,
+                                  surface, tool, planes),
+                      source);
+}
+
+// The same with a ball R3.
+io::Job BallJob(const std::string& step, const std::string& surface, const std::string& planes,
+                const std::string& source) {
+  return PlaneClJob(step, surface, "kind = \"ball_end\"\nradius_mm = 3", planes, source);
 }
 
 // The wavy faces' jobs: planes x = const, travelling along +Y, 7 mm apart.
@@ -1300,6 +1336,67 @@ TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
 }
 
 // How a job names its faces, and what it is told when they are not there.
+// A flat end R4 on a fixed axis cannot follow the wavy face's valleys (radius 7.6 mm across
+// them): it rides over them, as a drop cutter would. plane_cl passes end where the tool rests on
+// both sides of a valley, and the next starts there, a straight move of no more than the trace's
+// resolution away (not a link); the floor between is reported, as ridden over. Near each of them
+// no setpoint lifts the tool and none puts it under the face (OpenCASCADE's projection); every
+// limit holds. Eight passes: on the fourth line the contact points close a loop in a valley,
+// which the trace once went round for ever.
+TEST(SurfaceJob, AFlatBottomRidesOverValleysNarrowerThanIt) {
+  const std::string step = WriteNamedFaces("wavy_flat", {{WavyRuledFace(), "wavy"}});
+  const io::Job job = PlaneClJob(step, "", "kind = \"flat_end\"\nradius_mm = 4",
+                                 "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = "
+                                 "6\nmax_passes = 8",
+                                 test::Scratch("wavy_flat.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  const auto& passes = setup.passes.passes;
+  ASSERT_EQ(passes.size(), 8u);
+  std::vector<Pose> creases;
+  for (std::size_t k = 1; k < passes.size(); ++k) {
+    if (!passes[k]->RidesOverFromPrevious()) continue;
+    const Pose end = passes[k - 1]->EndPose(), start = passes[k]->StartPose();
+    EXPECT_LT((start.tip - end.tip).norm(), 1e-3) << k;
+    creases.push_back(end);
+  }
+  EXPECT_GE(creases.size(), 3u);
+  int ridden = 0;
+  for (const auto& u : setup.passes.unreachable) ridden += u.ridden_over;
+  EXPECT_EQ(ridden, static_cast<int>(creases.size()));
+  EXPECT_NE(setup.passes.UnreachableText(20).find("(the tool rides over it)"), std::string::npos);
+  const TopoDS_Face face = WavyRuledFace();
+  EXPECT_EQ(ExpectRidesAboveFace(face, job.surface->tool, setup.passes),
+            static_cast<int>(creases.size()));
+
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(r.verify.worst_ratio, 1.0);
+  const auto& c = r.table.columns;
+  const auto tip = [&c](std::size_t k) { return Eigen::Vector3d(c[0][k], c[1][k], c[2][k]); };
+  const std::size_t rows = c[0].size();
+  std::size_t k = 0;
+  for (std::size_t m = 1; m < passes.size(); ++m) {
+    if (!passes[m]->RidesOverFromPrevious()) continue;
+    const Eigen::Vector3d end = passes[m - 1]->EndPose().tip, start = passes[m]->StartPose().tip;
+    // The motion stops where the pass ends and goes straight on to where the next starts, close
+    // by and without lifting (a link would take a second or more).
+    while (k < rows && (tip(k) - end).norm() > 1e-6) ++k;
+    const std::size_t at_end = k;
+    while (k < rows && (tip(k) - start).norm() > 1e-6) ++k;
+    ASSERT_LT(k, rows) << "pass " << m + 1;
+    EXPECT_LT(k - at_end, 100u) << "pass " << m + 1;
+    for (std::size_t i = at_end; i <= k; ++i) EXPECT_LT((tip(i) - end).norm(), 1e-3) << i;
+    // Around it the tool stays above the face.
+    for (std::size_t i = at_end - std::min<std::size_t>(at_end, 200); i < k + 200 && i < rows;
+         i += 40) {
+      EXPECT_GT(SampledClearance(face, job.surface->tool, {tip(i), Eigen::Vector3d::UnitZ()},
+                                 {0.5, 0.5}, Eigen::Vector3d::UnitZ()),
+                -1e-6)
+          << i;
+    }
+  }
+}
+
 TEST(SurfaceJob, FacesAreGivenByNumberNameOrList) {
   const std::string step = TwoNamedWavyFaces("face_keys");
   const StepModel model = StepModel::Load(step);

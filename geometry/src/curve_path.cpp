@@ -31,12 +31,24 @@ double ArcLengthOfCurve(const BSplineCurve& curve) {
   return ArcLengthMap::MeasureLength(DerivativesOf(curve), DistinctKnots(curve));
 }
 
+namespace {
+// The tool axis turns linearly in its top point, this far up the axis.
+constexpr double kLeverMm = 100.0;
+}  // namespace
+
+Eigen::Vector3d StraightMoveAxis(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                 const Eigen::Vector3d& from_axis, const Eigen::Vector3d& to_axis,
+                                 double t) {
+  const Eigen::Vector3d tip = (1.0 - t) * from + t * to;
+  const Eigen::Vector3d top =
+      (1.0 - t) * (from + kLeverMm * from_axis) + t * (to + kLeverMm * to_axis);
+  return (top - tip).normalized();
+}
+
 std::unique_ptr<PathSource> StraightMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                          const Eigen::Vector3d& from_axis,
                                          const Eigen::Vector3d& to_axis) {
   if ((to_axis - from_axis).norm() < 1e-12) return std::make_unique<LinePath>(from, to, from_axis);
-  // The tool axis turns linearly in its top point, 100 mm up the axis.
-  constexpr double kLeverMm = 100.0;
   BSplineCurveData bottom{1, {0.0, 0.0, 1.0, 1.0}, {from, to}, {}};
   BSplineCurveData top{
       1, {0.0, 0.0, 1.0, 1.0}, {from + from_axis * kLeverMm, to + to_axis * kLeverMm}, {}};
@@ -145,15 +157,18 @@ std::string LinePath::Describe(const PathState& state) const {
   return fmt::format("arc length {} mm on the line", state.s);
 }
 
-std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance) {
+std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance,
+                                bool straight) {
   const Eigen::Vector3d out1 = from.tip + from.axis * clearance;
   const Eigen::Vector3d out2 = to.tip + to.axis * clearance;
   const Eigen::Vector3d up1(out1.x(), out1.y(), std::max(safe_z, out1.z()));
   const Eigen::Vector3d up2(out2.x(), out2.y(), std::max(safe_z, out2.z()));
   constexpr double kMinMm = 1e-9;
   std::vector<Pose> points{from};
-  for (const Pose& p : {Pose{out1, from.axis}, Pose{up1, from.axis}, Pose{up2, to.axis},
-                        Pose{out2, to.axis}, Pose{to.tip, to.axis}}) {
+  std::vector<Pose> way{Pose{out1, from.axis}, Pose{up1, from.axis}, Pose{up2, to.axis},
+                        Pose{out2, to.axis}, Pose{to.tip, to.axis}};
+  if (straight) way.erase(way.begin(), way.end() - 1);
+  for (const Pose& p : way) {
     if ((p.tip - points.back().tip).norm() > kMinMm) {
       points.push_back(p);
     } else if ((p.axis - points.back().axis).norm() >= 1e-12) {

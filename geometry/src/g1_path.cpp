@@ -866,8 +866,8 @@ std::string G1Path::Describe(const PathState& state) const {
 
 std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
                                                    double clearance, const Machine& machine,
-                                                   const CornerOptions& corners) {
-  const std::vector<Pose> points = LinkWaypoints(from, to, safe_z, clearance);
+                                                   const CornerOptions& corners, bool straight) {
+  const std::vector<Pose> points = LinkWaypoints(from, to, safe_z, clearance, straight);
   std::vector<std::unique_ptr<PathSource>> moves;
   std::size_t first = 0;  // the waypoint the current chain starts from
   const auto flush = [&](std::size_t last) {

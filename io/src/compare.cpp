@@ -146,6 +146,14 @@ struct Context {
   std::string stem;  // exports_dir/job name
 };
 
+// How an export links the passes: as the exact run does.
+LinkSpec LinksOf(const SurfaceSetup& setup) {
+  LinkSpec links{0.0, setup.clearance_mm, setup.link_heights.get(), {}};
+  for (const auto& pass : setup.passes.passes)
+    links.straight.push_back(pass->RidesOverFromPrevious());
+  return links;
+}
+
 // An export's tolerances: `tol` on the tip, the job's on the tool axis.
 geometry::ExportTolerance ToleranceOf(const CompareSpec& spec, double tol) {
   return {tol, spec.orientation_tol_deg, spec.corners.top_height_mm};
@@ -170,13 +178,13 @@ VariantResult G1Variant(const Context& c, double tol) {
   const std::string file =
       c.stem.empty() ? c.job.name + ".ngc" : fmt::format("{}_g1_{}.ngc", c.stem, FileMicrons(tol));
   const double feed_mm_min = c.setup.pass_options.feed_mm_s * 60.0;
-  const GcodeExport g = ExportG1(
-      poses, c.machine, feed_mm_min, {0.0, c.setup.clearance_mm, c.setup.link_heights.get()},
-      {fmt::format("dtis G1 export of job {}: {} passes, chordal tolerance {} mm", c.job.name, n,
-                   tol),
-       fmt::format("machine {}: X Y Z = tool tip (mm), rotary words = machine axes (deg)",
-                   c.machine.Name())},
-      file);
+  const GcodeExport g =
+      ExportG1(poses, c.machine, feed_mm_min, LinksOf(c.setup),
+               {fmt::format("dtis G1 export of job {}: {} passes, chordal tolerance {} mm",
+                            c.job.name, n, tol),
+                fmt::format("machine {}: X Y Z = tool tip (mm), rotary words = machine axes (deg)",
+                            c.machine.Name())},
+               file);
   for (const auto& p : vertices) v.blocks += static_cast<long>(p.size()) - 1;
   if (!c.stem.empty()) WriteText(file, g.text, &v);
 
@@ -277,7 +285,7 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
         {&fits[k]->bottom, fits[k]->top ? &*fits[k]->top : nullptr, c.samples[k].axis.front()});
   }
   const double feed_mm_min = c.setup.pass_options.feed_mm_s * 60.0;
-  const LinkSpec links{0.0, c.setup.clearance_mm, c.setup.link_heights.get()};
+  const LinkSpec links = LinksOf(c.setup);
   if (!c.stem.empty()) {
     const std::string base = fmt::format("{}_bspline_{}", c.stem, FileMicrons(tol));
     for (std::size_t k = 0; k < n; ++k) {

@@ -32,16 +32,19 @@ void Comments(const std::vector<std::string>& header, const char* open, const ch
   }
 }
 
-// G0 blocks from `from` (null: nowhere yet, the program's first block) to `to` through the links'
-// waypoints (geometry::LinkWaypoints, as the exact run links its passes): `block(pose)` writes one.
+// G0 blocks from `from` (null: nowhere yet, the program's first block) to `to`, the start of pass
+// p, through the links' waypoints (geometry::LinkWaypoints, as the exact run links its passes):
+// `block(pose)` writes one.
 template <class Block>
-void LinkBlocks(const Pose* from, const Pose& to, const LinkSpec& links, Block block) {
+void LinkBlocks(const Pose* from, const Pose& to, std::size_t p, const LinkSpec& links,
+                Block block) {
   if (!from) {
     block(to);
     return;
   }
   const double z = links.heights ? links.heights->TraverseZ(*from, to) : links.traverse_z_mm;
-  const std::vector<Pose> way = geometry::LinkWaypoints(*from, to, z, links.clearance_mm);
+  const std::vector<Pose> way =
+      geometry::LinkWaypoints(*from, to, z, links.clearance_mm, links.Straight(p));
   for (std::size_t w = 1; w < way.size(); ++w) block(way[w]);
 }
 
@@ -91,7 +94,7 @@ GcodeExport ExportG1(const std::vector<std::vector<Pose>>& passes, const Machine
     if (poses.size() < 2) throw Error("{}: pass {} has fewer than 2 poses", file_name, p + 1);
     const std::string where =
         p == 0 ? "pass 1 start" : fmt::format("link from pass {} to pass {}", p, p + 1);
-    LinkBlocks(p == 0 ? nullptr : &passes[p - 1].back(), poses.front(), links,
+    LinkBlocks(p == 0 ? nullptr : &passes[p - 1].back(), poses.front(), p, links,
                [&](const Pose& pose) { emit(GcodeMove::Kind::kRapid, pose, false, where); });
     for (std::size_t v = 1; v < poses.size(); ++v) {
       emit(GcodeMove::Kind::kLinear, poses[v], v == 1, fmt::format("pass {}, block {}", p + 1, v));
@@ -133,7 +136,7 @@ template <class Block>
 void LinkBlocks(const std::vector<SplinePass>& passes, std::size_t p, const LinkSpec& links,
                 Block block) {
   const Pose end = p == 0 ? Pose{} : EndPose(passes[p - 1], true);
-  LinkBlocks(p == 0 ? nullptr : &end, EndPose(passes[p], false), links, block);
+  LinkBlocks(p == 0 ? nullptr : &end, EndPose(passes[p], false), p, links, block);
 }
 
 }  // namespace

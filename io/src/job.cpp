@@ -755,8 +755,10 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
     const Pose to = machine.Forward(next.rows.front().q);
     std::vector<std::unique_ptr<PathSource>> moves;
     try {
-      moves = geometry::LinkMoves(from, to, setup.link_heights->TraverseZ(from, to),
-                                  setup.clearance_mm, machine, setup.link_corners);
+      moves = geometry::LinkMoves(
+          from, to, setup.link_heights->TraverseZ(from, to), setup.clearance_mm, machine,
+          setup.link_corners,
+          setup.passes.passes[static_cast<std::size_t>(k + 1)]->RidesOverFromPrevious());
     } catch (const Error& e) {
       throw Error("{}: linking pass {} to pass {}: {}", job_file, k + 1, k + 2, e.what());
     }

@@ -49,14 +49,15 @@ class Linker {
   // Queues the link moves from `at` to the start of `next` (none when already there), traversing
   // at the height `heights` gives (none: above both ends by the clearance).
   void LinkTo(const std::optional<AxisVector>& at, const PathSource& next,
-              const geometry::LinkHeights* heights, const std::string& name) {
+              const geometry::LinkHeights* heights, const std::string& name,
+              bool straight = false) {
     if (!at) return;
     const Pose from = machine_.Forward(*at);
     const Pose to = StartPose(next, machine_);
     if ((from.tip - to.tip).norm() < 1e-9 && (from.axis - to.axis).norm() < 1e-12) return;
     const double z =
         heights ? heights->TraverseZ(from, to) : std::max(from.tip.z(), to.tip.z()) + clearance_;
-    for (auto& m : geometry::LinkMoves(from, to, z, clearance_, machine_, corners_)) {
+    for (auto& m : geometry::LinkMoves(from, to, z, clearance_, machine_, corners_, straight)) {
       pending_.push_back({std::shared_ptr<const PathSource>(std::move(m)), options_, name, -1});
     }
   }
@@ -199,7 +200,8 @@ class SurfaceSegments final : public SegmentSource {
       linked_to_next_ = true;
       const std::string name = k == 0 ? std::string("link to pass 1")
                                       : fmt::format("link from pass {} to pass {}", k, k + 1);
-      linker_.LinkTo(here, *passes[k], setup_.link_heights.get(), name);
+      linker_.LinkTo(here, *passes[k], setup_.link_heights.get(), name,
+                     k > 0 && passes[k]->RidesOverFromPrevious());
       if (auto link = linker_.Pop()) return link;
     }
     linked_to_next_ = false;

@@ -10,6 +10,7 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/golden_section.hpp"
+#include "dtis/geometry/curve_path.hpp"
 
 namespace dtis::strategies {
 namespace {
@@ -92,11 +93,13 @@ class Builder {
     for (const Candidate& c : found) {
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
       // The pieces of the crossing between its unreachable stretches, each a pass.
-      const auto piece = [&](const ContactPoint& from, double s0, const ContactPoint& to,
-                             double s1) {
-        if (s1 - s0 < kMinPieceMm) return;
+      // Whether it was made (not too short, not past max_passes); `rides`: the tool rides over
+      // the stretch before it from the previous piece.
+      const auto piece = [&](const ContactPoint& from, double s0, const ContactPoint& to, double s1,
+                             bool rides) {
+        if (s1 - s0 < kMinPieceMm) return false;
         if (spec_.max_passes > 0 && static_cast<int>(list.passes.size()) == spec_.max_passes) {
-          return;
+          return false;
         }
         std::vector<Bridge> bridges;
         for (Bridge b : c.bridges) {
@@ -107,15 +110,25 @@ class Builder {
         list.passes.push_back(
             std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, from, to,
                                           s1 - s0, spec_.newton, std::move(bridges)));
+        list.passes.back()->SetRidesOverFromPrevious(rides);
+        return true;
       };
       ContactPoint from = c.start;
       double s0 = 0.0;
-      bool open = true;
+      bool open = true, rides = false;
+      // The piece after a stretch, made if the tool rides over the stretch from the one before:
+      // the stretch is then said to be ridden over.
+      const auto piece_after = [&](const ContactPoint& to, double s1) {
+        const bool made = piece(from, s0, to, s1, rides);
+        if (made && rides) list.unreachable.back().ridden_over = true;
+        return made;
+      };
       for (const Gap& g : c.gaps) {
-        piece(from, s0, g.before, g.s_begin);
+        const bool made = piece_after(g.before, g.s_begin);
+        rides = made && g.resumes && !g.outside_bounds && RidesOver(g.before, g.after);
         if (!g.outside_bounds) {
           list.unreachable.push_back(
-              {c.line + 1, g.before.p, g.after.p, g.contact_mm, g.resumes, g.why, {}});
+              {c.line + 1, g.before.p, g.after.p, g.contact_mm, g.resumes, false, g.why, {}});
         }
         if (!g.resumes) {
           open = false;
@@ -124,7 +137,7 @@ class Builder {
         from = g.after;
         s0 = g.s_end;
       }
-      if (open) piece(from, s0, c.end, c.length);
+      if (open) piece_after(c.end, c.length);
     }
     if (list.passes.empty() && list.unreachable.empty() && !spec_.bounds) {
       // Every crossing shorter than a piece is (a line grazing the face's edge).
@@ -771,6 +784,24 @@ class Builder {
     return true;
   }
 
+  // Whether the tool moved straight from a to b, its axis turning as a link's straight move turns
+  // it (geometry::StraightMove), stays out of the face and the checked faces: the tool checked as
+  // at a contact point (DeepestToolPoint) every kRideStepMm of the move.
+  bool RidesOver(const ContactPoint& a, const ContactPoint& b) const {
+    constexpr double kRideStepMm = 0.05;
+    const double chord = (b.tip - a.tip).norm();
+    const int n = std::max(2, static_cast<int>(std::ceil(chord / kRideStepMm)));
+    for (int i = 1; i < n; ++i) {
+      const double t = static_cast<double>(i) / n;
+      ContactPoint q = t < 0.5 ? a : b;  // where the drops start from
+      q.tip = (1.0 - t) * a.tip + t * b.tip;
+      q.axis = geometry::StraightMoveAxis(a.tip, b.tip, a.axis, b.axis, t);
+      if (DeepestToolPoint(q).depth > kGougeMm) return false;
+      if (spec_.check && spec_.check->Into(q.tip, q.axis)) return false;
+    }
+    return true;
+  }
+
   static constexpr const char* kOutsideBounds = "the tool tip leaves the strategy's bounds";
 
   // Why the tool may not be at p: its tip out of the strategy's bounds, or GougeAt.
@@ -978,7 +1009,10 @@ std::string PassList::UnreachableText(std::size_t most) const {
         "{:.6g}){}: {}\n",
         u.face.empty() ? "" : u.face + ", ", u.line, u.length_mm, u.from.x(), u.from.y(),
         u.from.z(), u.to.x(), u.to.y(), u.to.z(),
-        u.resumes ? "" : " (the line is not traced past it)", u.why);
+        u.ridden_over ? " (the tool rides over it)"
+        : u.resumes   ? ""
+                      : " (the line is not traced past it)",
+        u.why);
   }
   if (unreachable.size() > most) {
     out += fmt::format("  and {} more\n", unreachable.size() - most);

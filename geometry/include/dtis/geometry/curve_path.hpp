@@ -65,8 +65,10 @@ class LinePath final : public PathSource {
 // safe_z, traverse (the tool axis turning with a 5-axis line pair when the two axes differ), come
 // down above the second pose and approach it along its axis; `from` and `to` included, without
 // repeats. LinkMoves (g1_path.hpp) makes paths of them; a G-code export writes one rapid to each
-// after the first.
-std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance);
+// after the first. `straight`: from one straight to the other (the tool rides over what lies
+// between, strategies::SurfacePass::RidesOverFromPrevious).
+std::vector<Pose> LinkWaypoints(const Pose& from, const Pose& to, double safe_z, double clearance,
+                                bool straight = false);
 
 // The distinct knots of a curve inside its domain, ends included.
 std::vector<double> DistinctKnots(const BSplineCurve& curve);
@@ -81,5 +83,9 @@ double ArcLengthOfCurve(const BSplineCurve& curve);
 std::unique_ptr<PathSource> StraightMove(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                          const Eigen::Vector3d& from_axis,
                                          const Eigen::Vector3d& to_axis);
+// The tool axis of that move where the tip has gone the fraction t of the way.
+Eigen::Vector3d StraightMoveAxis(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                 const Eigen::Vector3d& from_axis, const Eigen::Vector3d& to_axis,
+                                 double t);
 
 }  // namespace dtis::geometry

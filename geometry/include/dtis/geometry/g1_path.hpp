@@ -253,9 +253,10 @@ class G1Path final : public PathSource {
 // The moves that link two poses through LinkWaypoints (curve_path.hpp), as few paths as it takes:
 // one chain of straight moves whose corners are smoothed within `corners` (so the machine does not
 // stop at the waypoints), split only where the link turns back on itself. `corners.feed_mm_s` is
-// the link feed.
+// the link feed. None when the two poses are within 1e-9 mm.
 std::vector<std::unique_ptr<PathSource>> LinkMoves(const Pose& from, const Pose& to, double safe_z,
                                                    double clearance, const Machine& machine,
-                                                   const CornerOptions& corners);
+                                                   const CornerOptions& corners,
+                                                   bool straight = false);
 
 }  // namespace dtis::geometry

@@ -30,6 +30,11 @@ struct LinkSpec {
   double traverse_z_mm = 0.0;
   double clearance_mm = 0.0;
   const geometry::LinkHeights* heights = nullptr;
+  // straight[p]: pass p is reached straight from the end of pass p - 1, not by a link (the tool
+  // rides over what lies between, strategies::SurfacePass::RidesOverFromPrevious). Shorter than
+  // the passes: the rest are linked.
+  std::vector<bool> straight;
+  bool Straight(std::size_t p) const { return p < straight.size() && straight[p]; }
 };
 
 struct GcodeExport {

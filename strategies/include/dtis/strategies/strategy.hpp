@@ -79,8 +79,10 @@ struct Unreachable {
   Eigen::Vector3d to = Eigen::Vector3d::Zero();    // where it fits again, or where the trace stops
   double length_mm = 0.0;  // of the line on the face (the contact point's path) left out
   bool resumes = false;    // false: the line is not finished past it
-  std::string why;         // the first reason met on it
-  std::string face;        // which face, when a job finishes several ("" otherwise)
+  bool ridden_over =
+      false;         // the tool moves straight across it (SurfacePass::RidesOverFromPrevious)
+  std::string why;   // the first reason met on it
+  std::string face;  // which face, when a job finishes several ("" otherwise)
 };
 
 struct PassList {

@@ -201,6 +201,12 @@ class SurfacePass final : public PathSource {
   std::string Describe(const PathState& state) const override;
 
   int Index() const { return index_; }  // 1-based
+  // Whether the previous pass ends on the same strategy line just before a stretch where the tool
+  // does not fit, and the tool moved straight from there to this pass's start (as a link's
+  // straight move turns it, geometry::StraightMove) stays out of the face: it rides over the
+  // stretch (a valley narrower than the tool, where it rests on both sides) instead of lifting.
+  bool RidesOverFromPrevious() const { return rides_over_; }
+  void SetRidesOverFromPrevious(bool rides) { rides_over_ = rides; }
   Pose StartPose() const;
   Pose EndPose() const;
   const PassEvaluator& Evaluator() const { return eval_; }
@@ -219,6 +225,7 @@ class SurfacePass final : public PathSource {
   double length_;
   NewtonOptions options_;
   std::vector<Bridge> bridges_;
+  bool rides_over_ = false;
   // The last state stepped from and the last result: the planner asks several trial arc lengths
   // from the same state, then steps from one of the results.
   mutable ContactPoint cache_[2];
