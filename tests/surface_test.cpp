@@ -894,20 +894,23 @@ TEST(SurfaceErrors, AFlatBottomAcrossAValleyIsAGougeWithWhereAndHowDeep) {
     // Skipping it instead: each line is finished up to where the tool stands centred over the
     // valley's floor (by symmetry the bottom then touches both flanks, and one step further its
     // far side goes into the face), and again from where it stands centred touching the other
-    // flank; the stretch between is reported.
+    // flank; the stretch between is reported, and the tool rides over it from one to the other.
     const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
     ASSERT_EQ(passes.passes.size(), 12u);
     ASSERT_EQ(passes.unreachable.size(), 6u);
     for (std::size_t k = 0; k < passes.passes.size(); ++k) {
       const auto& pass = passes.passes[k];
+      EXPECT_EQ(pass->RidesOverFromPrevious(), k % 2 == 1) << k;
       EXPECT_NEAR(std::abs((k % 2 == 0 ? pass->StartPose() : pass->EndPose()).tip.y()),
                   15.0 - tool.radius, 0.5);
       EXPECT_NEAR((k % 2 == 0 ? pass->EndPose() : pass->StartPose()).tip.y(), 0.0, 1e-4);
       const PathSample end = pass->At(pass->Start(), *pass->Length());
       EXPECT_NEAR(end.pose.tip.y(), pass->EndPose().tip.y(), 1e-6);
     }
+    EXPECT_EQ(ExpectRidesAboveFace(Valley(), tool, passes), 6);
     for (const auto& u : passes.unreachable) {
       EXPECT_TRUE(u.resumes);
+      EXPECT_TRUE(u.ridden_over);
       EXPECT_NEAR(u.to.y(), -u.from.y(), 1e-4);
       EXPECT_NE(u.why.find("the tool gouges"), std::string::npos) << u.why;
       // The contact where the tool is centred: y + r n_y(y) + R = 0 on the near flank.
