@@ -99,23 +99,10 @@ TEST(Stream, PassesThatRideOverStreamAsTheRunPlansThem) {
   const std::string step = test::Scratch("wavy_stream.stp");
   test::WriteStep(
       BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face(), step);
-  const std::string file = test::Scratch("wavy_stream.toml");
-  std::ofstream(file) << fmt::format(R"(machine = "{}"
-feed_mm_min = 3000
-[surface]
-file = "{}"
-[tool]
-kind = "flat_end"
-radius_mm = 4
-[strategy]
-kind = "plane_cl"
-plane_normal = [1, 0, 0]
-direction = [0, 1, 0]
-stepover_mm = 6
-max_passes = 3
-)",
-                                     test::Source("samples/machines/mikron_ucp710_xyz.toml"), step);
-  io::Job job = io::LoadJob(file);
+  io::Job job = test::PlaneClJob(step, "", "kind = \"flat_end\"\nradius_mm = 4",
+                                 "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = "
+                                 "6\nmax_passes = 3",
+                                 test::Scratch("wavy_stream.toml"));
   job.vpop.commit_horizon = io::kStreamCommitHorizon;
   const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
   int rides = 0;

@@ -1256,31 +1256,10 @@ std::string TwoNamedWavyFaces(const std::string& name) {
              {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "right"}});
 }
 
-// A 3-axis plane_cl job with `tool` (its [tool] keys) on the STEP file `step`: `surface` gives the
-// face (and more of [surface]), `planes` the strategy's plane_normal, direction and stepover (and
-// more of [strategy]); read as if from `source`.
-io::Job PlaneClJob(const std::string& step, const std::string& surface, const std::string& tool,
-                   const std::string& planes, const std::string& source) {
-  return io::ParseJob(fmt::format(R"(machine = "{}"
-feed_mm_min = 3000
-[surface]
-file = "{}"
-{}
-[tool]
-{}
-[strategy]
-kind = "plane_cl"
-{}
-)",
-                                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step,
-                                  surface, tool, planes),
-                      source);
-}
-
 // The same with a ball R3.
 io::Job BallJob(const std::string& step, const std::string& surface, const std::string& planes,
                 const std::string& source) {
-  return PlaneClJob(step, surface, "kind = \"ball_end\"\nradius_mm = 3", planes, source);
+  return test::PlaneClJob(step, surface, "kind = \"ball_end\"\nradius_mm = 3", planes, source);
 }
 
 // The wavy faces' jobs: planes x = const, travelling along +Y, 7 mm apart.
@@ -1338,7 +1317,6 @@ TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
   EXPECT_TRUE(right_cut);
 }
 
-// How a job names its faces, and what it is told when they are not there.
 // A flat end R4 on a fixed axis cannot follow the wavy face's valleys (radius 7.6 mm across
 // them): it rides over them, as a drop cutter would. plane_cl passes end where the tool rests on
 // both sides of a valley, and the next starts there, a straight move of no more than the trace's
@@ -1348,10 +1326,11 @@ TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
 // which the trace once went round for ever.
 TEST(SurfaceJob, AFlatBottomRidesOverValleysNarrowerThanIt) {
   const std::string step = WriteNamedFaces("wavy_flat", {{WavyRuledFace(), "wavy"}});
-  const io::Job job = PlaneClJob(step, "", "kind = \"flat_end\"\nradius_mm = 4",
-                                 "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = "
-                                 "6\nmax_passes = 8",
-                                 test::Scratch("wavy_flat.toml"));
+  const io::Job job =
+      test::PlaneClJob(step, "", "kind = \"flat_end\"\nradius_mm = 4",
+                       "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = "
+                       "6\nmax_passes = 8",
+                       test::Scratch("wavy_flat.toml"));
   const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
   const auto& passes = setup.passes.passes;
   ASSERT_EQ(passes.size(), 8u);
@@ -1400,6 +1379,7 @@ TEST(SurfaceJob, AFlatBottomRidesOverValleysNarrowerThanIt) {
   }
 }
 
+// How a job names its faces, and what it is told when they are not there.
 TEST(SurfaceJob, FacesAreGivenByNumberNameOrList) {
   const std::string step = TwoNamedWavyFaces("face_keys");
   const StepModel model = StepModel::Load(step);

@@ -1,6 +1,7 @@
 // Shared helpers for the tests: the random-suite knobs, sample paths, and an in-memory sink.
 #pragma once
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,6 +15,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
 
@@ -27,6 +29,28 @@ std::string Scratch(const std::string& name);
 
 inline std::string Source(const std::string& relative) {
   return std::string(DTIS_SOURCE_DIR) + "/" + relative;
+}
+
+// A 3-axis plane_cl job with `tool` (its [tool] keys) on the STEP file `step`: `surface` gives the
+// face (and more of [surface]), `planes` the strategy's plane_normal, direction and stepover (and
+// more of [strategy]); read as if from `source`.
+inline io::Job PlaneClJob(const std::string& step, const std::string& surface,
+                          const std::string& tool, const std::string& planes,
+                          const std::string& source) {
+  return io::ParseJob(fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+{}
+[tool]
+{}
+[strategy]
+kind = "plane_cl"
+{}
+)",
+                                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step,
+                                  surface, tool, planes),
+                      source);
 }
 
 // `f` throws dtis::Error with every one of `fragments` in its message.
