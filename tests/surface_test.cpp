@@ -30,6 +30,7 @@
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
+#include <TopoDS.hxx>
 #include <TopoDS_Compound.hxx>
 #include <TopoDS_Wire.hxx>
 #include <cmath>
@@ -1165,6 +1166,20 @@ TopoDS_Face WavyRuledFace() {
   return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face();
 }
 
+// The wavy face's 5-axis orientation: tilted 10 deg from the normal along the feed.
+Orientation Tilted10() {
+  Orientation o;
+  o.kind = Orientation::Kind::kTiltYaw;
+  o.tilt_rad = 10.0 * std::numbers::pi / 180.0;
+  return o;
+}
+
+// The wavy face's leading_line guide: a cubic across it along Y, bending in X.
+std::shared_ptr<const geometry::BSplineCurve> WavyGuide() {
+  return std::make_shared<const geometry::BSplineCurve>(geometry::BSplineCurveData{
+      3, {0, 0, 0, 0, 1, 1, 1, 1}, {{30, -5, 0}, {25, 20, 0}, {35, 40, 0}, {30, 65, 0}}, {}});
+}
+
 TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   // What holds today: a ball R3 builds every pass of plane_cl, uv and leading_line, 3-axis and
   // tilted 10 deg, never under the face (3-axis passes planned and verified); a flat bottom (flat
@@ -1173,11 +1188,8 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   // straight move keeps the tool out of the face, SurfaceJob.AFlatBottomRidesOver...).
   const TopoDS_Face face = WavyRuledFace();
   const FaceSurface surface(face, "wavy");
-  Orientation tilted;
-  tilted.kind = Orientation::Kind::kTiltYaw;
-  tilted.tilt_rad = 10.0 * std::numbers::pi / 180.0;
-  const auto guide = std::make_shared<const geometry::BSplineCurve>(geometry::BSplineCurveData{
-      3, {0, 0, 0, 0, 1, 1, 1, 1}, {{30, -5, 0}, {25, 20, 0}, {35, 40, 0}, {30, 65, 0}}, {}});
+  const Orientation tilted = Tilted10();
+  const auto guide = WavyGuide();
   const auto xyz =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
   const auto xyzac =
@@ -1212,8 +1224,9 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
         const auto passes = strategies::BuildPasses(surface, tool, o, spec);
         ASSERT_EQ(passes.passes.size(), 3u);
         if (o.kind == Orientation::Kind::kFixed) {
-          // (Tilted, the axis crosses the XYZAC's A = 0 where C turns fast: planning that is the
-          // singular sample's business, not this test's.)
+          // (Tilted, the axis passes within a degree of the XYZAC's pole, where C turns half a
+          // revolution in a few millimetres: TiltedPassesOnAWavyFaceSetUpAwayFromThePole... plans
+          // the tilted passes with the part set up away from it.)
           interp::VpopOptions opt;
           opt.feed_mm_s = 50.0;
           const test::Planned planned = test::PlanAndVerify(*passes.passes[1], *xyz, opt);
@@ -1222,6 +1235,58 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
         ExpectToolAboveFace(face, tool, passes, 0.1, 0.4);
       }
     }
+  }
+}
+
+// Tilted 10 deg, every pass of the wavy face comes within 0.07 to 1.5 deg of vertical, the pole of
+// a table-tilting machine (its C axis), where C turns half a revolution in a few millimetres. A
+// CAM user sets the part up away from it: rotated 60 deg about X, the axis stays 18 to 82 deg from
+// vertical, and the tilted passes plan on the XYZAC within every limit (look-ahead planner; one
+// pass per strategy, the ball's and the bull nose's, whose flat part leaves the valleys out),
+// never under the face.
+TEST(SurfaceProperty, TiltedPassesOnAWavyFaceSetUpAwayFromThePolePlanAndVerify) {
+  gp_Trsf set_up;
+  set_up.SetRotation(gp::OX(), 60.0 * std::numbers::pi / 180.0);
+  const TopoDS_Face face =
+      TopoDS::Face(BRepBuilderAPI_Transform(WavyRuledFace(), set_up, Standard_True).Shape());
+  const FaceSurface surface(face, "wavy, set up 60 deg about X");
+  const Orientation tilted = Tilted10();
+  const auto guide = WavyGuide();
+  const auto xyzac =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  const Tool bull = Torus(Tool::Kind::kBullNose, 5.0, 1.0);
+  const std::pair<Tool, StrategySpec::Kind> cases[] = {{Ball(3.0), StrategySpec::Kind::kPlaneCl},
+                                                       {bull, StrategySpec::Kind::kUv},
+                                                       {bull, StrategySpec::Kind::kLeadingLine}};
+  for (const auto& [tool, kind] : cases) {
+    SCOPED_TRACE(fmt::format("{}, {}", tool.Describe(), StrategySpec::KindName(kind)));
+    StrategySpec spec;
+    spec.kind = kind;
+    spec.stepover_mm = 6.0;
+    spec.along_u = false;
+    spec.max_passes = 2;
+    if (kind == StrategySpec::Kind::kLeadingLine) spec.guide = guide;
+    const auto passes = strategies::BuildPasses(surface, tool, tilted, spec);
+    ASSERT_EQ(passes.passes.size(), 2u);
+    const strategies::SurfacePass& pass = *passes.passes[1];
+    // Away from the pole all along (sampled every 0.1 mm).
+    const double length = pass.Length().value();
+    PathState state = pass.Start();
+    double nearest = INFINITY;
+    for (double s = 0.0; s <= length; s += 0.1) {
+      const PathSample smp = pass.At(state, s);
+      state = smp.state;
+      nearest = std::min(nearest, std::acos(std::clamp(smp.pose.axis.z(), -1.0, 1.0)));
+    }
+    EXPECT_GT(nearest, 15.0 * std::numbers::pi / 180.0);
+    interp::VpopOptions opt;
+    opt.feed_mm_s = 50.0;
+    opt.planner = interp::PlannerKind::kLookAhead;
+    const test::Planned planned = test::PlanAndVerify(pass, *xyzac, opt);
+    EXPECT_TRUE(planned.report.Passed()) << interp::FormatReport(planned.report);
+    EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+    EXPECT_NEAR(planned.points.back().s, length, 1e-6);
+    ExpectToolAboveFace(face, tool, passes, 0.1, 0.8);
   }
 }
 
