@@ -1,5 +1,6 @@
 #include "fixture_shapes.hpp"
 
+#include <BRepBuilderAPI_MakeFace.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Message.hxx>
@@ -40,6 +41,10 @@ Handle(Geom_BSplineSurface) WavyRuledSurface() {
   wave[0]->Knots(v_knots);
   wave[0]->Multiplicities(v_mults);
   return new Geom_BSplineSurface(poles, u_knots, v_knots, u_mults, v_mults, 1, 3);
+}
+
+TopoDS_Face WavyRuledFace() {
+  return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(WavyRuledSurface()), 1e-7).Face();
 }
 
 void WriteStep(const TopoDS_Shape& shape, const std::string& path) {

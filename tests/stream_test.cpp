@@ -8,7 +8,6 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include <BRepBuilderAPI_MakeFace.hxx>
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -97,8 +96,7 @@ TEST(Stream, EqualsTheRunWithTheSameHorizon) {
 // moves, not linked.
 TEST(Stream, PassesThatRideOverStreamAsTheRunPlansThem) {
   const std::string step = test::Scratch("wavy_stream.stp");
-  test::WriteStep(
-      BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face(), step);
+  test::WriteStep(test::WavyRuledFace(), step);
   io::Job job = test::PlaneClJob(step, "", "kind = \"flat_end\"\nradius_mm = 4",
                                  "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = "
                                  "6\nmax_passes = 3",

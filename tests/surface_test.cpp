@@ -1161,10 +1161,7 @@ TEST(SurfacePass, APassAcrossASpheresPoleGoesOver) {
   EXPECT_TRUE(over);
 }
 
-// The wavy ruled B-spline face (wavy_surface.hpp) over its whole domain.
-TopoDS_Face WavyRuledFace() {
-  return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::WavyRuledSurface()), 1e-7).Face();
-}
+using test::WavyRuledFace;
 
 // The wavy face's 5-axis orientation: tilted 10 deg from the normal along the feed.
 Orientation Tilted10() {
@@ -1268,17 +1265,17 @@ TEST(SurfaceProperty, TiltedPassesOnAWavyFaceSetUpAwayFromThePolePlanAndVerify) 
     if (kind == StrategySpec::Kind::kLeadingLine) spec.guide = guide;
     const auto passes = strategies::BuildPasses(surface, tool, tilted, spec);
     ASSERT_EQ(passes.passes.size(), 2u);
-    const strategies::SurfacePass& pass = *passes.passes[1];
-    // Away from the pole all along (sampled every 0.1 mm).
-    const double length = pass.Length().value();
-    PathState state = pass.Start();
+    // Both passes away from the pole all along (at every 500th of their length).
     double nearest = INFINITY;
-    for (double s = 0.0; s <= length; s += 0.1) {
-      const PathSample smp = pass.At(state, s);
-      state = smp.state;
-      nearest = std::min(nearest, std::acos(std::clamp(smp.pose.axis.z(), -1.0, 1.0)));
-    }
+    ForPosesAlong(passes, 0.0, 2e-3,
+                  [&](const strategies::SurfacePass&, const PathSample& smp,
+                      const strategies::ContactPoint&) {
+                    nearest =
+                        std::min(nearest, std::acos(std::clamp(smp.pose.axis.z(), -1.0, 1.0)));
+                  });
     EXPECT_GT(nearest, 15.0 * std::numbers::pi / 180.0);
+    const strategies::SurfacePass& pass = *passes.passes[1];
+    const double length = pass.Length().value();
     interp::VpopOptions opt;
     opt.feed_mm_s = 50.0;
     opt.planner = interp::PlannerKind::kLookAhead;
