@@ -18,6 +18,8 @@ import subprocess
 import sys
 import tempfile
 
+from markdown_block import replace_block
+
 FILTER = ("Plan/|GcodePlanSample/|SurfacePlanner/|SurfacePlannerHoles/|Surface/|SurfacePlan/|"
           "SurfaceD2|CurvePoint|"
           "CurveD3|GcodeRead|GcodeLoad1M|Export")
@@ -196,17 +198,7 @@ def main():
     if not a.update:
         print(text)
         return
-    with open(a.update) as f:
-        doc = f.read()
-    begin, end = "<!-- tables:begin -->\n", "<!-- tables:end -->"
-    if begin not in doc or end not in doc:
-        sys.exit(f"{a.update}: no '{begin.strip()}' ... '{end}' lines to replace")
-    head, rest = doc.split(begin, 1)
-    tail = rest.split(end, 1)[1]
-    tmp = a.update + ".tmp"
-    with open(tmp, "w") as f:
-        f.write(head + begin + text + end + tail)
-    os.replace(tmp, a.update)
+    replace_block(a.update, "tables", text)
 
 
 if __name__ == "__main__":

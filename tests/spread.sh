@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# bench/spread.py on the line sample at F 2.5 m/min: both planners get a row, the rows are
+# ordered (least <= median <= largest), the motion at the job's own limits is the closed form
+# L/F + 2 sqrt(F/J) of a jerk-limited straight move within two periods, every lowered limit can
+# only lengthen it (by the closed form at 99.6 % of J at most), and no rewritten job is left
+# next to the sample.
+set -euo pipefail
+dtis=$1
+root=$2
+out=$(/usr/bin/python3 "$root/bench/spread.py" --dtis "$dtis" --workers 2 --feed-mm-min 2500 \
+  "$root/samples/jobs/line.toml")
+echo "$out"
+if compgen -G "$root/samples/jobs/.spread_*" >/dev/null; then
+  echo "FAIL: rewritten jobs left in samples/jobs" >&2
+  exit 1
+fi
+for planner in vpop lookahead; do
+  row=$(echo "$out" | grep "| \`line.toml\` | $planner |") || {
+    echo "FAIL: no $planner row" >&2
+    exit 1
+  }
+  echo "$row" | awk -F'|' -v p="$planner" '{
+    own = $4 + 0; least = $5 + 0; median = $6 + 0; largest = $7 + 0
+    F = 2500 / 60; J = 5000; L = 100
+    exact = L / F + 2 * sqrt(F / J); lowered = L / F + 2 * sqrt(F / (0.996 * J))
+    if (!(least <= median && median <= largest)) { print "FAIL: " p " rows out of order"; exit 1 }
+    if (own < exact - 0.002 || own > exact + 0.002) {
+      printf "FAIL: %s %.3f s, closed form %.4f s\n", p, own, exact; exit 1 }
+    if (largest > lowered + 0.002) {
+      printf "FAIL: %s largest %.3f s, closed form at 99.6 %% %.4f s\n", p, largest, lowered; exit 1 }
+  }' || exit 1
+done
+echo "spread: ok"
