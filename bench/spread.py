@@ -70,15 +70,15 @@ def motion_time(dtis, job, planner, fraction, feed_mm_min=None):
     return float(m.group(1))
 
 
-def table(dtis, jobs, workers, feed_mm_min=None):
-    tasks = [(job, planner, fraction) for job in jobs for planner in PLANNERS
+def table(dtis, jobs, workers, feed_mm_min=None, planners=PLANNERS):
+    tasks = [(job, planner, fraction) for job in jobs for planner in planners
              for fraction in FRACTIONS]
     with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
         times = dict(zip(tasks, pool.map(lambda t: motion_time(dtis, *t, feed_mm_min), tasks)))
     rows = ["| job | planner | at its limits (s) | least (s) | median (s) | largest (s) | "
             "spread |", "|---|---|---:|---:|---:|---:|---:|"]
     for job in jobs:
-        for planner in PLANNERS:
+        for planner in planners:
             x = [times[(job, planner, f)] for f in FRACTIONS]
             rows.append(f"| `{os.path.basename(job)}` | {planner} | {x[0]:.3f} | {min(x):.3f} | "
                         f"{statistics.median(x):.3f} | {max(x):.3f} | "
@@ -92,15 +92,19 @@ def main():
     p.add_argument("--dtis", default="build/cli/dtis", help="the dtis binary")
     p.add_argument("--feed-mm-min", type=float,
                    help="plan every job at this feed instead of its own feed_mm_min")
+    p.add_argument("--planner", choices=PLANNERS, action="append",
+                   help="plan with this planner only (repeat for both; default: both)")
     p.add_argument("--update", help="replace the spread table in this Markdown file")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="plans run at once (default: one per core)")
     a = p.parse_args()
     fractions = ", ".join(f"{f:g}" for f in FRACTIONS)
+    planners = tuple(a.planner) if a.planner else PLANNERS
     feed = f" --feed-mm-min {a.feed_mm_min:g}" if a.feed_mm_min else ""
+    feed += "".join(f" --planner {p}" for p in a.planner or [])
     text = (f"Motion times at `limit_fraction` {fractions}, made with\n`python3 bench/spread.py "
             f"--dtis build/cli/dtis{feed} {' '.join(a.jobs)}`:\n\n" +
-            table(a.dtis, a.jobs, a.workers, a.feed_mm_min))
+            table(a.dtis, a.jobs, a.workers, a.feed_mm_min, planners))
     if not a.update:
         print(text)
         return
