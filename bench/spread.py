@@ -48,21 +48,34 @@ def with_fraction(text, fraction, feed_mm_min=None):
                      lines[end:]) + "\n"
 
 
+def staged(job, text, tmp):
+    """Writes `text` as a copy of `job` under `tmp`, beside links to everything next to the job
+    and next to its folder, so that the job's relative paths (../machines/..., a program beside
+    it) still reach the same files; the job's own folder is never written to."""
+    folder = os.path.dirname(os.path.abspath(job))
+    parent = os.path.dirname(folder)
+    stage_parent = os.path.join(tmp, "stage")
+    stage = os.path.join(stage_parent, os.path.basename(folder))
+    os.makedirs(stage)
+    for entry in os.listdir(parent):
+        if entry != os.path.basename(folder):
+            os.symlink(os.path.join(parent, entry), os.path.join(stage_parent, entry))
+    for entry in os.listdir(folder):
+        os.symlink(os.path.join(folder, entry), os.path.join(stage, entry))
+    name = os.path.join(stage, "spread_" + os.path.basename(job))
+    with open(name, "w") as f:
+        f.write(text)
+    return name
+
+
 def motion_time(dtis, job, planner, fraction, feed_mm_min=None):
     """The motion time `dtis run` prints for the job planned at `fraction` of every limit."""
     with open(job) as f:
         text = with_fraction(f.read(), fraction, feed_mm_min)
-    folder = os.path.dirname(os.path.abspath(job))  # the job's relative paths stay valid
-    with tempfile.NamedTemporaryFile("w", suffix=".toml", prefix=".spread_", dir=folder,
-                                     delete=False) as f:
-        f.write(text)
-        name = f.name
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            r = subprocess.run([dtis, "run", name, "--planner", planner, "-o",
-                                os.path.join(tmp, "out.csv")], capture_output=True, text=True)
-    finally:
-        os.unlink(name)
+    with tempfile.TemporaryDirectory() as tmp:
+        name = staged(job, text, tmp)
+        r = subprocess.run([dtis, "run", name, "--planner", planner, "-o",
+                            os.path.join(tmp, "out.csv")], capture_output=True, text=True)
     m = re.search(r"motion time\s+([0-9.]+) s", r.stderr)
     if r.returncode != 0 or not m:
         sys.exit(f"{job}: dtis run --planner {planner} at limit_fraction {fraction} failed:\n"
