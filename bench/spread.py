@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""How much a sample's motion time depends on chance: each job planned with both planners against
-slightly lowered limits.
+"""How much a sample's motion time depends on chance: each job planned with both planners (or one)
+against slightly lowered limits.
 
     python3 bench/spread.py --dtis build/cli/dtis samples/jobs/trident.toml
     python3 bench/spread.py --dtis build/cli/dtis --update docs/planner.md samples/jobs/*.toml
@@ -113,10 +113,10 @@ def main():
     a = p.parse_args()
     fractions = ", ".join(f"{f:g}" for f in FRACTIONS)
     planners = tuple(a.planner) if a.planner else PLANNERS
-    feed = f" --feed-mm-min {a.feed_mm_min:g}" if a.feed_mm_min else ""
-    feed += "".join(f" --planner {p}" for p in a.planner or [])
+    options = f" --feed-mm-min {a.feed_mm_min:g}" if a.feed_mm_min else ""
+    options += "".join(f" --planner {p}" for p in a.planner or [])
     text = (f"Motion times at `limit_fraction` {fractions}, made with\n`python3 bench/spread.py "
-            f"--dtis build/cli/dtis{feed} {' '.join(a.jobs)}`:\n\n" +
+            f"--dtis build/cli/dtis{options} {' '.join(a.jobs)}`:\n\n" +
             table(a.dtis, a.jobs, a.workers, a.feed_mm_min, planners))
     if not a.update:
         print(text)

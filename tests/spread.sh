@@ -19,11 +19,15 @@ if [ "$(ls -A "$root/samples/jobs")" != "$before" ]; then
   echo "FAIL: spread.py wrote into samples/jobs" >&2
   exit 1
 fi
-for planner in vpop lookahead; do
-  row=$(echo "$out" | grep "| \`line.toml\` | $planner |") || {
-    echo "FAIL: no $planner row" >&2
-    exit 1
+# The row of job $1 and planner $2 in $out, or a failure.
+row() {
+  echo "$out" | grep "| \`$1.toml\` | $2 |" || {
+    echo "FAIL: no $2 row for $1" >&2
+    return 1
   }
+}
+for planner in vpop lookahead; do
+  row=$(row line "$planner")
   echo "$row" | awk -F'|' -v p="$planner" '{
     own = $4 + 0; least = $5 + 0; median = $6 + 0; largest = $7 + 0
     F = 2500 / 60; J = 5000; L = 100
@@ -39,10 +43,7 @@ out=$(/usr/bin/python3 "$root/bench/spread.py" --dtis "$dtis" --workers 2 --plan
   "$root/samples/jobs/circle_300.toml" "$root/samples/jobs/open_pocket_bottom.toml")
 echo "$out"
 for job in circle_300 open_pocket_bottom; do
-  row=$(echo "$out" | grep "| \`$job.toml\` | lookahead |") || {
-    echo "FAIL: no $job row" >&2
-    exit 1
-  }
+  row=$(row "$job" lookahead)
   echo "$row" | awk -F'|' -v j="$job" '{
     least = $5 + 0; largest = $7 + 0
     if (largest > 1.005 * least) {
