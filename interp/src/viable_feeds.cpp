@@ -122,7 +122,11 @@ void ViableFeeds::Append(Node node) {
 double ViableFeeds::End() const { return nodes_.empty() ? 0.0 : nodes_.back().s; }
 
 bool ViableFeeds::Admissible(const Node& n, double v, double a, double* lo, double* hi) const {
-  const double m = n.margin;
+  return Admissible(n, n.margin, v, a, lo, hi);
+}
+
+bool ViableFeeds::Admissible(const Node& n, double m, double v, double a, double* lo,
+                             double* hi) const {
   if (!(v >= 0.0) || v > n.feed_cap * m || std::abs(a) > limits_.tangential_acceleration * m) {
     return false;
   }
@@ -778,9 +782,8 @@ void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi
   }
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
                              [](double x, const Node& n) { return x < n.s; });
-  Node n = it == nodes_.begin() ? *it : *(it - 1);
-  n.margin /= options_.limit_fraction;
-  if (!Admissible(n, std::max(v, 0.0), a, lo, hi)) {
+  const Node& n = it == nodes_.begin() ? *it : *(it - 1);
+  if (!Admissible(n, n.margin / options_.limit_fraction, std::max(v, 0.0), a, lo, hi)) {
     *lo = -10.0 * n.jerk_cap;
     *hi = 10.0 * n.jerk_cap;
   }

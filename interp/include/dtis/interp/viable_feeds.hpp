@@ -120,8 +120,10 @@ class ViableFeeds {
   // Adds a node at the end of the grid.
   void Append(Node node);
 
-  // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false.
+  // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false; planned
+  // with the fraction m of the limits instead of the node's margin.
   bool Admissible(const Node& n, double v, double a, double* lo, double* hi) const;
+  bool Admissible(const Node& n, double m, double v, double a, double* lo, double* hi) const;
   // The largest v' <= v with (v', a) admissible at `n`; -1 if none.
   double Clip(const Node& n, double a, double v) const;
   // v_max(a) of a boundary, -1 outside it: the chords between its points (they read a concave
