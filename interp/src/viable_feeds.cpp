@@ -23,22 +23,53 @@ constexpr double kMinRepairMargin = 0.5;
 // A chord between two boundary points may read the boundary this much low (relative), no more.
 constexpr double kChordTolerance = 2e-4;
 
+// The grid is extended, once the planner is within half a window of its end, to this many
+// windows ahead: each extension also recomputes the stretch before the old end that rest there
+// held back, so longer extensions recompute less of the grid twice.
+constexpr double kExtendWindows = 2.0;
+
 // Grid points a release of the deceleration is followed over before the closed form at the jerk
 // limit decides.
 constexpr int kMaxReleaseNodes = 64;
 
 // The time t > 0 in which a motion starting with feed v, acceleration a and constant jerk j
 // covers the distance h (v t + a t^2 / 2 + j t^3 / 6 = h, the first root), or NaN when it comes to
-// rest first. Newton from h / v.
+// rest first. Newton from the root's series in h, or from the least time any one term alone needs.
 double TimeToCover(double v, double a, double j, double h) {
-  // Start from the series of the root in h when the feed dominates, else from the jerk alone.
-  double t;
-  if (v > 1e-9) {
-    const double t1 = h / v;
-    const double t2 = t1 - a * t1 * t1 / (2.0 * v);
-    t = t2 > 0.5 * t1 ? t2 : t1;
-  } else {
-    t = std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+  const auto covered = [&](double x) { return x * (v + x * (a / 2.0 + x * j / 6.0)); };
+  // Braking: the first time the feed v + a t + j t^2 / 2 reaches zero. Short of h by then, the
+  // motion comes to rest first.
+  double rest = INFINITY;
+  if (a < 0.0 || j < 0.0) {
+    const double c = j / 2.0, disc = a * a - 4.0 * c * v;
+    if (std::abs(c) * v <= 1e-12 * a * a) {
+      if (a < 0.0) rest = -v / a;
+    } else if (disc >= 0.0) {
+      // The roots q / c and v / q (q from the sign of a, without cancellation).
+      const double q = -0.5 * (a + std::copysign(std::sqrt(disc), a));
+      for (const double r : {q / c, q != 0.0 ? v / q : INFINITY}) {
+        if (r >= 0.0) rest = std::min(rest, r);
+      }
+    }
+    if (covered(rest) < h) return NAN;
+  }
+  // Where the feed dominates, the series of the root in x = h / v (the reversion of
+  // h = v t + a t^2 / 2 + j t^3 / 6) to third order: over a grid stretch it is within a few parts
+  // in 1e6, and Newton needs one or two steps. Else the least of the times the feed, the
+  // acceleration or the jerk alone would take (an upper bound of the root where all three push
+  // forward, and Newton then closes in from above).
+  double t = INFINITY;
+  const double x = v > 1e-9 ? h / v : INFINITY;
+  if (std::isfinite(x)) {
+    const double c2 = -a / (2.0 * v), c3 = a * a / (2.0 * v * v) - j / (6.0 * v);
+    if (std::abs(c2 * x) < 0.25 && std::abs(c3 * x * x) < 0.25) t = x * (1.0 + x * (c2 + x * c3));
+  }
+  if (!std::isfinite(t)) {
+    t = x;
+    if (a > 0.0) t = std::min(t, std::sqrt(2.0 * h / a));
+    if (j > 0.0) t = std::min(t, std::cbrt(6.0 * h / j));
+    if (!std::isfinite(t)) t = std::cbrt(6.0 * h / std::max(std::abs(j), 1e-9));
+    t = std::min(t, rest);
   }
   for (int it = 0; it < 40; ++it) {
     const double f = t * (v + t * (a / 2.0 + t * j / 6.0)) - h;
@@ -47,9 +78,13 @@ double TimeToCover(double v, double a, double j, double h) {
       t *= 0.5;
       continue;
     }
-    double next = t - f / df;
+    const double step = f / df;
+    double next = t - step;
     if (next <= 0.0) next = 0.5 * t;
-    const bool done = std::abs(next - t) <= 1e-13 * t;
+    // Newton's next error is about step^2 f'' / (2 f'): below 1e-13 t, this step is the last.
+    const bool done =
+        std::abs(step) <= 1e-13 * t ||
+        (std::abs(step) <= 1e-4 * t && step * step * std::abs(a + j * next) <= 2e-13 * next * df);
     t = next;
     if (done) break;
   }
@@ -677,14 +712,14 @@ void ViableFeeds::Extend(double to) {
       break;
     }
   }
-  // Backward: rest at the end of the window, then every boundary from the next one, back to half
-  // a window before the old end (three stops at the feed: what rest at the old end held back lies
-  // nearer to it). Near the end, every state from which the planner's own discrete stop law
-  // (motion_law.hpp) comes to rest there with the least capacity the axes leave before it belongs
-  // to the viable set too: the continuous boundary alone would brake a little earlier than that
-  // law lands.
+  // Backward: rest at the end of the window, then every boundary from the next one, back to a
+  // quarter of a window before the old end (one and a half stops at the feed: what rest at the old
+  // end held back lies nearer to it; a boundary left as it was is only the smaller set). Near the
+  // end, every state from which the planner's own discrete stop law (motion_law.hpp) comes to rest
+  // there with the least capacity the axes leave before it belongs to the viable set too: the
+  // continuous boundary alone would brake a little earlier than that law lands.
   nodes_.back().boundary = TerminalBoundary(nodes_.back());
-  Recompute(nodes_.size() - 1, old_end, old_end - 0.5 * window_);
+  Recompute(nodes_.size() - 1, old_end, old_end - 0.25 * window_);
 }
 
 void ViableFeeds::Recompute(std::size_t from, double unchanged, double until) {
@@ -801,7 +836,7 @@ void ViableFeeds::Advance(double s, const PathState& state, const AxisVector& q,
   // Drop the grid behind where the planner may still step back to.
   while (nodes_.size() > 2 && nodes_[1].s <= keep) nodes_.pop_front();
   const bool at_end = length_ && nodes_.back().s >= *length_;
-  if (!at_end && nodes_.back().s < s + 0.5 * window_) Extend(s + window_);
+  if (!at_end && nodes_.back().s < s + 0.5 * window_) Extend(s + kExtendWindows * window_);
 }
 
 }  // namespace dtis::interp
