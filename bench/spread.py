@@ -48,20 +48,27 @@ def with_fraction(text, fraction, feed_mm_min=None):
                      lines[end:]) + "\n"
 
 
-def staged(job, text, tmp):
+def staged(job, text, tmp, levels=2):
     """Writes `text` as a copy of `job` under `tmp`, beside links to everything next to the job
-    and next to its folder, so that the job's relative paths (../machines/..., a program beside
-    it) still reach the same files; the job's own folder is never written to."""
+    and next to each of its `levels` nearest ancestor folders, so that the job's relative paths
+    (../machines/..., ../../samples/..., a program beside it) still reach the same files; the
+    job's own folder is never written to."""
     folder = os.path.dirname(os.path.abspath(job))
-    parent = os.path.dirname(folder)
-    stage_parent = os.path.join(tmp, "stage")
-    stage = os.path.join(stage_parent, os.path.basename(folder))
+    # The ancestors to mirror, nearest first, and the staged folder at the same depth under tmp.
+    chain = [folder]
+    while len(chain) <= levels and os.path.dirname(chain[-1]) != chain[-1]:
+        chain.append(os.path.dirname(chain[-1]))
+    stage = os.path.join(tmp, "stage", *[os.path.basename(f) for f in reversed(chain[:-1])])
     os.makedirs(stage)
-    for entry in os.listdir(parent):
-        if entry != os.path.basename(folder):
-            os.symlink(os.path.join(parent, entry), os.path.join(stage_parent, entry))
     for entry in os.listdir(folder):
         os.symlink(os.path.join(folder, entry), os.path.join(stage, entry))
+    # Each ancestor's other entries, beside the staged copy of the folder on the way down to it.
+    mirror = stage
+    for inner, outer in zip(chain, chain[1:]):
+        mirror = os.path.dirname(mirror)
+        for entry in os.listdir(outer):
+            if entry != os.path.basename(inner):
+                os.symlink(os.path.join(outer, entry), os.path.join(mirror, entry))
     name = os.path.join(stage, "spread_" + os.path.basename(job))
     with open(name, "w") as f:
         f.write(text)
