@@ -37,6 +37,7 @@ constexpr int kMaxReleaseNodes = 64;
 // rest first. Newton from the root's series in h, or from the least time any one term alone needs.
 double TimeToCover(double v, double a, double j, double h) {
   const auto covered = [&](double x) { return x * (v + x * (a / 2.0 + x * j / 6.0)); };
+  const auto feed = [&](double x) { return v + x * (a + x * j / 2.0); };
   // Braking: the first time the feed v + a t + j t^2 / 2 reaches zero. Short of h by then, the
   // motion comes to rest first.
   double rest = INFINITY;
@@ -72,8 +73,8 @@ double TimeToCover(double v, double a, double j, double h) {
     t = std::min(t, rest);
   }
   for (int it = 0; it < 40; ++it) {
-    const double f = t * (v + t * (a / 2.0 + t * j / 6.0)) - h;
-    const double df = v + t * (a + t * j / 2.0);
+    const double f = covered(t) - h;
+    const double df = feed(t);
     if (df <= 1e-12) {
       t *= 0.5;
       continue;
@@ -88,9 +89,9 @@ double TimeToCover(double v, double a, double j, double h) {
     t = next;
     if (done) break;
   }
-  if (std::abs(t * (v + t * (a / 2.0 + t * j / 6.0)) - h) > 1e-9 * h) return NAN;
-  // The feed must not turn negative on the way (its minimum is at t = -a / j).
-  const auto feed = [&](double x) { return v + x * (a + x * j / 2.0); };
+  if (std::abs(covered(t) - h) > 1e-9 * h) return NAN;
+  // The feed must not turn negative on the way (its minimum is at t = -a / j): the check above
+  // took j as zero where it is negligible, and a series start may lie past the rest.
   if (feed(t) < 0.0) return NAN;
   if (j != 0.0) {
     const double tm = -a / j;
