@@ -90,16 +90,26 @@ def motion_time(dtis, job, planner, fraction, feed_mm_min=None):
     return float(m.group(1))
 
 
-def table(dtis, jobs, workers, feed_mm_min=None, planners=PLANNERS):
+def fractions_for(draws):
+    """FRACTIONS, or `draws` fractions evenly spaced from 1 down to the same 0.996."""
+    if not draws:
+        return FRACTIONS
+    if draws < 2:
+        sys.exit(f"--draws {draws}: at least 2 (1 and {FRACTIONS[-1]:g})")
+    low = FRACTIONS[-1]
+    return tuple(round(1.0 - k * (1.0 - low) / (draws - 1), 12) for k in range(draws))
+
+
+def table(dtis, jobs, workers, feed_mm_min=None, planners=PLANNERS, fractions=FRACTIONS):
     tasks = [(job, planner, fraction) for job in jobs for planner in planners
-             for fraction in FRACTIONS]
+             for fraction in fractions]
     with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
         times = dict(zip(tasks, pool.map(lambda t: motion_time(dtis, *t, feed_mm_min), tasks)))
     rows = ["| job | planner | at its limits (s) | least (s) | median (s) | largest (s) | "
             "spread |", "|---|---|---:|---:|---:|---:|---:|"]
     for job in jobs:
         for planner in planners:
-            x = [times[(job, planner, f)] for f in FRACTIONS]
+            x = [times[(job, planner, f)] for f in fractions]
             rows.append(f"| `{os.path.basename(job)}` | {planner} | {x[0]:.3f} | {min(x):.3f} | "
                         f"{statistics.median(x):.3f} | {max(x):.3f} | "
                         f"{100.0 * (max(x) / min(x) - 1.0):.1f} % |")
@@ -117,14 +127,21 @@ def main():
     p.add_argument("--update", help="replace the spread table in this Markdown file")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="plans run at once (default: one per core)")
+    p.add_argument("--draws", type=int,
+                   help="plan at this many fractions evenly from 1 down to "
+                   f"{FRACTIONS[-1]:g} (default: the {len(FRACTIONS)} of the table in "
+                   "docs/planner.md): more draws, a steadier median")
     a = p.parse_args()
-    fractions = ", ".join(f"{f:g}" for f in FRACTIONS)
+    fractions = fractions_for(a.draws)
+    listed = (", ".join(f"{f:g}" for f in fractions) if not a.draws else
+              f"1 down to {fractions[-1]:g} in {a.draws} even steps")
     planners = tuple(a.planner) if a.planner else PLANNERS
     options = f" --feed-mm-min {a.feed_mm_min:g}" if a.feed_mm_min else ""
     options += "".join(f" --planner {p}" for p in a.planner or [])
-    text = (f"Motion times at `limit_fraction` {fractions}, made with\n`python3 bench/spread.py "
+    options += f" --draws {a.draws}" if a.draws else ""
+    text = (f"Motion times at `limit_fraction` {listed}, made with\n`python3 bench/spread.py "
             f"--dtis build/cli/dtis{options} {' '.join(a.jobs)}`:\n\n" +
-            table(a.dtis, a.jobs, a.workers, a.feed_mm_min, planners))
+            table(a.dtis, a.jobs, a.workers, a.feed_mm_min, planners, fractions))
     if not a.update:
         print(text)
         return

@@ -50,4 +50,28 @@ for job in circle_300 open_pocket_bottom; do
       printf "FAIL: %s moves from %.3f to %.3f s\n", j, least, largest; exit 1 }
   }' || exit 1
 done
+# --draws: that many fractions evenly from 1 down to 0.996, the first at the job's own limits
+# (the closed form again), and fewer than two refused with a message.
+out=$(/usr/bin/python3 "$root/bench/spread.py" --dtis "$dtis" --workers 2 --planner vpop \
+  --feed-mm-min 2500 --draws 5 "$root/samples/jobs/line.toml")
+echo "$out"
+echo "$out" | grep -q "1 down to 0.996 in 5 even steps" || {
+  echo "FAIL: --draws 5 does not name its fractions" >&2
+  exit 1
+}
+row line vpop | awk -F'|' '{
+  own = $4 + 0; F = 2500 / 60; J = 5000; L = 100
+  exact = L / F + 2 * sqrt(F / J)
+  if (own < exact - 0.002 || own > exact + 0.002) {
+    printf "FAIL: --draws 5 at the own limits %.3f s, closed form %.4f s\n", own, exact; exit 1 }
+}' || exit 1
+if err=$(/usr/bin/python3 "$root/bench/spread.py" --dtis "$dtis" --draws 1 \
+  "$root/samples/jobs/line.toml" 2>&1); then
+  echo "FAIL: --draws 1 accepted" >&2
+  exit 1
+fi
+echo "$err" | grep -q "at least 2" || {
+  echo "FAIL: --draws 1 refused without saying why: $err" >&2
+  exit 1
+}
 echo "spread: ok"
