@@ -49,10 +49,10 @@ double ViableFeed(const interp::ViableFeeds& feeds, double s, double a, double t
 // On a straight line the viable set is known in closed form: at the feed F far from the end, and
 // at distance d before it, from zero acceleration, the feed of the jerk-limited stop whose
 // acceleration is a triangle: d = v sqrt(v / J), v = (J d^2)^(1/3) (the acceleration limit does
-// not bind there). The look-ahead plans at a fraction f of the limits (J f) and leaves the last
-// landing_mm to the exact step's stop law (d + landing). Braking states (a < 0) may go faster,
-// accelerating ones must go slower; a state braked beyond what its feed can release
-// (v < a^2 / 2 J) is not viable, nor one whose release alone overshoots the end.
+// not bind there). The look-ahead plans at a fraction f of the limits (J f), and the exact step's
+// discrete stop law lands the last law_zone_mm at the end itself. Braking states (a < 0) may go
+// faster, accelerating ones must go slower; a state braked beyond what its feed can release (v <
+// a^2 / 2 J) is not viable, nor one whose release alone overshoots the end.
 TEST(ViableFeeds, OnALineTheyAreTheJerkLimitedStop) {
   const auto machine = Cartesian(500.0, 2500.0, 5000.0);
   const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
@@ -73,7 +73,7 @@ TEST(ViableFeeds, OnALineTheyAreTheJerkLimitedStop) {
   EXPECT_NEAR(ViableFeed(feeds, 30.0, 0.0, 200.0), limits.feed, 1e-6);
   for (const double d : {0.5, 2.0, 5.0}) {
     const double s = 100.0 - d;
-    const double stop = std::cbrt(J * (d + options.landing_mm) * (d + options.landing_mm));
+    const double stop = std::cbrt(J * d * d);
     EXPECT_NEAR(ViableFeed(feeds, s, 0.0, 200.0), stop, 0.01 * stop) << "d = " << d;
     EXPECT_GT(ViableFeed(feeds, s, -100.0, 200.0), ViableFeed(feeds, s, 0.0, 200.0)) << d;
     EXPECT_LT(ViableFeed(feeds, s, 100.0, 200.0), ViableFeed(feeds, s, 0.0, 200.0)) << d;
@@ -151,9 +151,9 @@ double MedianMotion(const PathSource& path, const Machine& machine, interp::Vpop
 // alone (v >= a^2 / 2J) forbid it below 20 mm/s. The look-ahead planner, with the release walked
 // along its grid, is in the median of lowered limits no slower than the paper's planner (by more
 // than the 0.5 % the planners are compared by) at F 2 and 5 m/min, and within 6 % and 15 % of
-// the minimum times (2.260 s and 1.6668 s, docs/references.md): 2.375 s and 1.887 s today. Judged
-// by the jerk limits alone it was 6.3 % and 15 % over at its own limits, and slower than the
-// paper's.
+// the minimum times (2.260 s and 1.6668 s, docs/references.md): 2.336 s and 1.858 s today (over
+// 17 draws, bench/spread.py --draws 17: 2.344 and 1.849 s). Judged by the jerk limits alone it
+// was 6.3 % and 15 % over at its own limits, and slower than the paper's.
 TEST(LookAhead, TridentTipsAreBrakedIntoAsHardAsTheTurnAllows) {
   for (const auto& [feed, minimum] : {std::pair{2000.0, 2.260}, std::pair{5000.0, 1.6668}}) {
     SCOPED_TRACE(feed);
@@ -166,6 +166,31 @@ TEST(LookAhead, TridentTipsAreBrakedIntoAsHardAsTheTurnAllows) {
     EXPECT_LE(ahead, 1.005 * paper);
     EXPECT_LE(ahead, (feed < 3000.0 ? 1.06 : 1.15) * minimum);
   }
+}
+
+// The head-table pass ends in a stop the axes' acceleration decides, which the discrete stop law
+// lands over the last LookAheadOptions::law_zone_mm. The profile used to end with rest at the end
+// of the path, counting on jerk that the curvature terms give the axes and the law does not have:
+// the motion entered the law's stretch braked harder than the law can release, the law failed to
+// land eight times, and each repair lowered the capacity the law then planned the whole stop with.
+// It was 5.1 % slower than the paper's planner in the median (1.352 s against 1.286 s); with the
+// boundary at the stretch's start cut to the states the law lands from, 1.282 s (the median of
+// bench/spread.py's eight draws).
+TEST(LookAhead, TheEndOfAPassIsLandedNoSlowerThanByThePapersPlanner) {
+  const auto median = [](PlannerKind planner) {
+    auto job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_head_table.toml"));
+    job.vpop.planner = planner;
+    std::vector<double> times;
+    for (const double fraction : {1.0, 0.9995, 0.999, 0.998, 0.996}) {
+      job.vpop.limit_fraction = fraction;
+      const io::RunResult r = io::RunJob(job);
+      EXPECT_LE(r.verify.worst_ratio, 1.0) << fraction;
+      times.push_back(r.verify.motion_time_s);
+    }
+    std::sort(times.begin(), times.end());
+    return times[times.size() / 2];
+  };
+  EXPECT_LE(median(PlannerKind::kLookAhead), 1.005 * median(PlannerKind::kVpop));
 }
 
 }  // namespace

@@ -424,6 +424,10 @@ double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
 void ViableFeeds::Propagate(Node* n, const Node& next) const {
   const double h = next.s - n->s;
   const auto& b = next.boundary;
+  if (b.empty()) {
+    n->boundary.clear();  // nothing viable ahead: nothing here either
+    return;
+  }
   std::vector<Point> out;
   out.reserve(b.size() + 8);
   if (h <= 0.0) {
@@ -562,6 +566,58 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
     simple.push_back(merged[i]);
   }
   n->boundary = std::move(simple);
+  if (n->law_entry) {
+    // Past this point the law brings the motion to rest wherever it binds: the states it lands
+    // from, within what the axes allow here.
+    std::vector<Point> law;
+    for (const Point& p : LawBoundary(*n)) {
+      const double c = Clip(*n, p.a, p.v);
+      if (c >= 0.0) law.push_back({p.a, c});
+    }
+    n->boundary = std::move(law);
+  }
+}
+
+std::vector<ViableFeeds::Point> ViableFeeds::LawBoundary(const Node& n) const {
+  // The law's capacity over its stretch, as the exact step plans it (vpop.cpp, LookAhead and
+  // ArriveBy: the least jerk and acceleration caps of the grid points before the end).
+  double jerk = n.jerk_cap, acceleration = n.acceleration_cap;
+  for (auto it = nodes_.begin() + (n.id - nodes_.front().id); it != nodes_.end(); ++it) {
+    jerk = std::min(jerk, it->jerk_cap);
+    acceleration = std::min(acceleration, it->acceleration_cap);
+  }
+  const double zone = options_.law_zone_mm;
+  const auto lands = [&](double v, double a) {
+    const StopDistance d = StopDistanceFrom(v, a, jerk, acceleration, kLawPeriod);
+    return !d.reverses && d.distance <= zone;
+  };
+  std::vector<Point> out;
+  // A stop within the stretch d from (v, a) needs |a| of the order of (J^2 d)^(1/3): far less than
+  // the acceleration cap where the stretch is short.
+  const double reach = std::min(acceleration, 4.0 * std::cbrt(jerk * jerk * zone));
+  const int k = 2 * static_cast<int>(std::ceil(1.0 / options_.boundary_resolution));
+  for (int i = -k; i <= k; ++i) {
+    const double a = reach * i / k;
+    // The least feed that releases the deceleration before it runs out, then the largest that
+    // still stops within the stretch.
+    double good = a < 0.0 ? ReleaseGain(-a, jerk, kLawPeriod) * (1.0 + 1e-6) + 1e-9 : 0.0;
+    double bad = n.feed_cap;
+    if (!lands(good, a)) continue;
+    if (lands(bad, a)) {
+      out.push_back({a, bad});
+      continue;
+    }
+    for (int it = 0; it < 60 && bad - good > 1e-9 * bad; ++it) {
+      const double mid = 0.5 * (good + bad);
+      if (lands(mid, a)) {
+        good = mid;
+      } else {
+        bad = mid;
+      }
+    }
+    out.push_back({a, good});
+  }
+  return out;
 }
 
 ViableFeeds::Point ViableFeeds::Spawn(const Node& n, const Node& next, double a, double v_guess,
@@ -677,11 +733,16 @@ void ViableFeeds::Extend(double to) {
   struct Mark {
     double s;
     bool is_break;
+    bool law_entry = false;
   };
   std::vector<Mark> marks;
   for (const double b : path_.Breaks(old_end, to)) marks.push_back({b, true});
   for (const SlowPoint& p : path_.SlowPoints()) {
     if (p.s > old_end && p.s <= to) marks.push_back({p.s, false});
+  }
+  if (length_) {
+    const double entry = *length_ - options_.law_zone_mm;
+    if (entry > old_end && entry < to && entry > 0.0) marks.push_back({entry, false, true});
   }
   std::stable_sort(marks.begin(), marks.end(),
                    [](const Mark& x, const Mark& y) { return x.s < y.s; });
@@ -694,8 +755,10 @@ void ViableFeeds::Extend(double to) {
     for (;;) {
       double s = last.s + step;
       if (s > limit - 0.3 * step) s = limit;
-      const bool at_break = next_mark != marks.end() && s == next_mark->s && next_mark->is_break;
+      const bool at_mark = next_mark != marks.end() && s == next_mark->s;
+      const bool at_break = at_mark && next_mark->is_break;
       Node n = Sample(s, last.state, last.q, at_break ? -1 : 0);
+      n.law_entry = at_mark && next_mark->law_entry;
       const double need = Spacing(n, to);
       if (need < 0.7 * (s - last.s) && step > options_.min_spacing_mm) {
         step = std::max(options_.min_spacing_mm, need);

@@ -54,6 +54,12 @@ struct LookAheadOptions {
   // and a continuous boundary ending exactly at rest would disagree with it by a hair and stop the
   // motion short of the end.
   double landing_mm = 0.01;
+  // Over the last this many mm of the path the exact step follows its discrete stop law
+  // (motion_law.hpp) to rest wherever the law binds, not the profile. The grid has a point where
+  // that stretch begins, and its boundary keeps only the states from which the law lands: where
+  // the path turns, the profile may count on jerk the curvature terms give the axes, which the
+  // law, planned with the axes' jerk limits over |q_s|, does not have.
+  double law_zone_mm = 0.05;
 };
 
 // Limits along the path (mm, s) and of each axis (mm or rad, s), as the exact step plans them.
@@ -113,6 +119,7 @@ class ViableFeeds {
     double acceleration_cap = 0.0;  // largest tangential acceleration the axes allow (a guide)
     double jerk_cap = 0.0;          // largest tangential jerk the axes allow (a guide)
     bool break_after = false;       // the path's derivatives jump between this node and the next
+    bool law_entry = false;         // where the stop law's last stretch begins (law_zone_mm)
     double margin = 1.0;            // fraction of the limits planned with here (repairs lower it)
     std::vector<Point> boundary;    // v_max(a), sorted by a
     long id = 0;                    // position in the grid since the first node
@@ -145,6 +152,9 @@ class ViableFeeds {
   double SlackTowards(const Node& n, double s, const Node& next, double v, double a) const;
   // The boundary at the end of the grid (rest there).
   std::vector<Point> TerminalBoundary(const Node& n) const;
+  // The states at the law's entry node n from which the discrete stop law, with the least
+  // capacity the grid points from n to the end give, comes to rest within the law's stretch.
+  std::vector<Point> LawBoundary(const Node& n) const;
   // The boundary of `n` from that of `next`.
   void Propagate(Node* n, const Node& next) const;
   // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a).
