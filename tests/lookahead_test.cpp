@@ -130,20 +130,27 @@ TEST(LookAhead, CircleAboveItsCurvatureFeedIsWithinTwoPercentOfMinimumTime) {
   EXPECT_EQ(p.summary.back_offs, 0);
 }
 
-// The motion times of a job planned with its limits lowered by 0 to 0.4 % (as bench/spread.py
-// plans them): on the trident the look-ahead's time at any one set of limits is partly chance
-// (docs/planner.md), its median is not.
-double MedianMotion(const PathSource& path, const Machine& machine, interp::VpopOptions o,
-                    PlannerKind planner) {
+// The median of motion(fraction), the motion time of a job planned with its limits lowered by 0
+// to 0.4 % (as bench/spread.py plans them): on the trident the look-ahead's time at any one set
+// of limits is partly chance (docs/planner.md), its median is not.
+template <typename Motion>
+double MedianOverLoweredLimits(const Motion& motion) {
   std::vector<double> times;
   for (const double fraction : {1.0, 0.9995, 0.999, 0.998, 0.996}) {
-    o.limit_fraction = fraction;
-    const Planned p = Plan(path, machine, o, planner);
-    EXPECT_TRUE(p.report.Passed()) << fraction << ": " << interp::FormatReport(p.report);
-    times.push_back(p.summary.motion_time_s);
+    times.push_back(motion(fraction));
   }
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];
+}
+
+double MedianMotion(const PathSource& path, const Machine& machine, interp::VpopOptions o,
+                    PlannerKind planner) {
+  return MedianOverLoweredLimits([&](double fraction) {
+    o.limit_fraction = fraction;
+    const Planned p = Plan(path, machine, o, planner);
+    EXPECT_TRUE(p.report.Passed()) << fraction << ": " << interp::FormatReport(p.report);
+    return p.summary.motion_time_s;
+  });
 }
 
 // The trident's tips: the minimum-time motion brakes at -450 mm/s^2 at 5 to 9 mm/s, where the
@@ -180,15 +187,12 @@ TEST(LookAhead, TheEndOfAPassIsLandedNoSlowerThanByThePapersPlanner) {
   const auto median = [](PlannerKind planner) {
     auto job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_head_table.toml"));
     job.vpop.planner = planner;
-    std::vector<double> times;
-    for (const double fraction : {1.0, 0.9995, 0.999, 0.998, 0.996}) {
+    return MedianOverLoweredLimits([&](double fraction) {
       job.vpop.limit_fraction = fraction;
       const io::RunResult r = io::RunJob(job);
       EXPECT_LE(r.verify.worst_ratio, 1.0) << fraction;
-      times.push_back(r.verify.motion_time_s);
-    }
-    std::sort(times.begin(), times.end());
-    return times[times.size() / 2];
+      return r.verify.motion_time_s;
+    });
   };
   EXPECT_LE(median(PlannerKind::kLookAhead), 1.005 * median(PlannerKind::kVpop));
 }

@@ -439,6 +439,16 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
     n->boundary = std::move(out);
     return;
   }
+  if (n->law_entry) {
+    // Past this point the law brings the motion to rest wherever it binds: the states it lands
+    // from, within what the axes allow here (what lies past them is the law's to get through).
+    for (const Point& p : LawBoundary(*n)) {
+      const double c = Clip(*n, p.a, p.v);
+      if (c >= 0.0) out.push_back({p.a, c});
+    }
+    n->boundary = std::move(out);
+    return;
+  }
   // The peak: the points at the boundary's largest feed (a plateau at the feed cap has many).
   std::size_t peak = 0;
   for (std::size_t i = 1; i < b.size(); ++i) {
@@ -566,26 +576,12 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
     simple.push_back(merged[i]);
   }
   n->boundary = std::move(simple);
-  if (n->law_entry) {
-    // Past this point the law brings the motion to rest wherever it binds: the states it lands
-    // from, within what the axes allow here.
-    std::vector<Point> law;
-    for (const Point& p : LawBoundary(*n)) {
-      const double c = Clip(*n, p.a, p.v);
-      if (c >= 0.0) law.push_back({p.a, c});
-    }
-    n->boundary = std::move(law);
-  }
 }
 
 std::vector<ViableFeeds::Point> ViableFeeds::LawBoundary(const Node& n) const {
-  // The law's capacity over its stretch, as the exact step plans it (vpop.cpp, LookAhead and
-  // ArriveBy: the least jerk and acceleration caps of the grid points before the end).
-  double jerk = n.jerk_cap, acceleration = n.acceleration_cap;
-  for (auto it = nodes_.begin() + (n.id - nodes_.front().id); it != nodes_.end(); ++it) {
-    jerk = std::min(jerk, it->jerk_cap);
-    acceleration = std::min(acceleration, it->acceleration_cap);
-  }
+  // The law's capacity over its stretch, as the exact step plans it (vpop.cpp, LookAhead: the
+  // least jerk and acceleration caps of the grid points before the end).
+  const double jerk = MinJerkCap(n.s, End()), acceleration = MinAccelerationCap(n.s, End());
   const double zone = options_.law_zone_mm;
   const auto lands = [&](double v, double a) {
     const StopDistance d = StopDistanceFrom(v, a, jerk, acceleration, kLawPeriod);
