@@ -460,8 +460,13 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
   while (peak_right + 1 < b.size() && b[peak_right + 1].v >= top - 1e-9 * (1.0 + top)) ++peak_right;
   const double a_range = n->acceleration_cap;
   // Flow a boundary point of `next` back to `n` along the extreme jerk that keeps it viable:
-  // braking as hard as allowed right of the peak, accelerating left of it. The jerk bound is the
-  // one of the state it comes from (a fixed point, found in a few rounds).
+  // braking as hard as allowed right of the peak, accelerating left of it. The jerk is held over
+  // the whole stretch, so it must be one the axes allow at both of its ends: in the state it
+  // comes from (a fixed point, found in a few rounds) and in the one it reaches. With the bound of
+  // the first alone, a boundary where the axes' jerk interval narrows along the stretch promised
+  // states that only a jerk outside it could hold; the exact step rode the boundary out of the
+  // viable set and, refused everything, braked as hard as it could (five_axis_g1: 11 010 of its
+  // 15 000 steps).
   // `hold`: the jerk that keeps the acceleration (inside a plateau, where any successor on it
   // will do).
   const auto flow = [&](const Point& e, bool brake, bool hold = false) {
@@ -484,7 +489,7 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
         if (lo0 > 0.0 || hi0 < 0.0) return;
         break;
       }
-      const double j0 = brake ? lo0 : hi0;
+      const double j0 = brake ? std::max(lo0, lo) : std::min(hi0, hi);
       if (std::abs(j0 - j) <= 1e-9 * (std::abs(j) + 1.0)) break;
       j = j0;
     }
