@@ -69,7 +69,7 @@ TEST(ViableFeeds, OnALineTheyAreTheJerkLimitedStop) {
   machine->Inverse(line.At(line.Start(), 0.0).pose, nullptr, &q);
   feeds.Advance(0.0, line.Start(), q, 0.0);
   ASSERT_EQ(feeds.End(), 100.0);
-  const double J = 5000.0 * options.limit_fraction;
+  const double J = 5000.0 * options.jerk_fraction;
   EXPECT_NEAR(ViableFeed(feeds, 30.0, 0.0, 200.0), limits.feed, 1e-6);
   for (const double d : {0.5, 2.0, 5.0}) {
     const double s = 100.0 - d;

@@ -137,12 +137,12 @@ bool Backward(double v2, double a2, double j, double h, double* v, double* a) {
 
 ViableFeeds::ViableFeeds(const PathSource& path, const Machine& machine,
                          const LookAheadLimits& limits, const LookAheadOptions& options)
-    : path_(path), machine_(machine), limits_(limits), options_(options) {
+    : path_(path), machine_(machine), limits_(limits), full_(limits), options_(options) {
   n_axes_ = machine.AxisCount();
   for (int i = 0; i < n_axes_; ++i) {
-    limits_.v[i] *= options_.limit_fraction;
-    limits_.a[i] *= options_.limit_fraction;
-    limits_.j[i] *= options_.limit_fraction;
+    limits_.v[i] *= options_.velocity_fraction;
+    limits_.a[i] *= options_.acceleration_fraction;
+    limits_.j[i] *= options_.jerk_fraction;
   }
   // The look-ahead must see further than the longest stop: from the feed, with the weakest axis'
   // acceleration and jerk (a path along an axis, the worst case for linear axes; rotary-dominated
@@ -902,7 +902,23 @@ void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
                              [](double x, const Node& n) { return x < n.s; });
   const Node& n = it == nodes_.begin() ? *it : *(it - 1);
-  if (!Admissible(n, n.margin / options_.limit_fraction, std::max(v, 0.0), a, lo, hi)) {
+  v = std::max(v, 0.0);
+  *lo = -full_.tangential_jerk * n.margin;
+  *hi = full_.tangential_jerk * n.margin;
+  for (int i = 0; i < n_axes_ && *lo <= *hi; ++i) {
+    const double g = n.d1[i];
+    const double c = v * (n.d3[i] * v * v + 3.0 * n.d2[i] * a);
+    const double J = full_.j[i] * n.margin;
+    if (std::abs(g) < 1e-12) {
+      if (std::abs(c) > J) *lo = INFINITY;
+      continue;
+    }
+    double l = (-J - c) / g, h = (J - c) / g;
+    if (g < 0.0) std::swap(l, h);
+    *lo = std::max(*lo, l);
+    *hi = std::min(*hi, h);
+  }
+  if (!(*lo <= *hi)) {
     *lo = -10.0 * n.jerk_cap;
     *hi = 10.0 * n.jerk_cap;
   }
