@@ -179,22 +179,30 @@ bool ViableFeeds::Admissible(const Node& n, double m, double v, double a, double
   if (!(v >= 0.0) || v > n.feed_cap * m || std::abs(a) > limits_.tangential_acceleration * m) {
     return false;
   }
-  *lo = -limits_.tangential_jerk * m;
-  *hi = limits_.tangential_jerk * m;
   for (int i = 0; i < n_axes_; ++i) {
     const double g = n.d1[i];
     if (std::abs(g) * v > limits_.v[i] * m) return false;
     if (std::abs(n.d2[i] * v * v + g * a) > limits_.a[i] * m) return false;
+  }
+  return JerkInterval(n, limits_, m, v, a, lo, hi);
+}
+
+bool ViableFeeds::JerkInterval(const Node& n, const LookAheadLimits& l, double m, double v,
+                               double a, double* lo, double* hi) const {
+  *lo = -l.tangential_jerk * m;
+  *hi = l.tangential_jerk * m;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double g = n.d1[i];
     const double c = v * (n.d3[i] * v * v + 3.0 * n.d2[i] * a);
-    const double J = limits_.j[i] * m;
+    const double J = l.j[i] * m;
     if (std::abs(g) < 1e-12) {
       if (std::abs(c) > J) return false;
       continue;
     }
-    double l = (-J - c) / g, h = (J - c) / g;
-    if (g < 0.0) std::swap(l, h);
-    *lo = std::max(*lo, l);
-    *hi = std::min(*hi, h);
+    double jl = (-J - c) / g, jh = (J - c) / g;
+    if (g < 0.0) std::swap(jl, jh);
+    *lo = std::max(*lo, jl);
+    *hi = std::min(*hi, jh);
   }
   return *lo <= *hi;
 }
@@ -705,11 +713,11 @@ ViableFeeds::Node ViableFeeds::Sample(double s, const PathState& hint, const Axi
   // A slow point's feed (Eq. 8 over its corner: each axis alone, at constant feed) caps the node
   // only where the node does not see the corner itself, allowing at zero acceleration more than
   // kUnseenCorner times that feed (see there).
-  const double own = Clip(n, 0.0, n.feed_cap);
+  std::optional<double> own;  // computed at the first slow point here, before any cap
   for (const SlowPoint& p : path_.SlowPoints()) {
-    if (std::abs(p.s - s) <= 1e-9 * (1.0 + s) && own > kUnseenCorner * p.feed_mm_s) {
-      n.feed_cap = std::min(n.feed_cap, p.feed_mm_s);
-    }
+    if (!(std::abs(p.s - s) <= 1e-9 * (1.0 + s))) continue;
+    if (!own) own = Clip(n, 0.0, n.feed_cap);
+    if (*own > kUnseenCorner * p.feed_mm_s) n.feed_cap = std::min(n.feed_cap, p.feed_mm_s);
   }
   double cap = limits_.tangential_acceleration, jerk = limits_.tangential_jerk;
   for (int i = 0; i < n_axes_; ++i) {
@@ -902,23 +910,7 @@ void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s,
                              [](double x, const Node& n) { return x < n.s; });
   const Node& n = it == nodes_.begin() ? *it : *(it - 1);
-  v = std::max(v, 0.0);
-  *lo = -full_.tangential_jerk * n.margin;
-  *hi = full_.tangential_jerk * n.margin;
-  for (int i = 0; i < n_axes_ && *lo <= *hi; ++i) {
-    const double g = n.d1[i];
-    const double c = v * (n.d3[i] * v * v + 3.0 * n.d2[i] * a);
-    const double J = full_.j[i] * n.margin;
-    if (std::abs(g) < 1e-12) {
-      if (std::abs(c) > J) *lo = INFINITY;
-      continue;
-    }
-    double l = (-J - c) / g, h = (J - c) / g;
-    if (g < 0.0) std::swap(l, h);
-    *lo = std::max(*lo, l);
-    *hi = std::min(*hi, h);
-  }
-  if (!(*lo <= *hi)) {
+  if (!JerkInterval(n, full_, n.margin, std::max(v, 0.0), a, lo, hi)) {
     *lo = -10.0 * n.jerk_cap;
     *hi = 10.0 * n.jerk_cap;
   }

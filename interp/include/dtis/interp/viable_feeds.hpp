@@ -140,6 +140,10 @@ class ViableFeeds {
   // with the fraction m of the limits instead of the node's margin.
   bool Admissible(const Node& n, double v, double a, double* lo, double* hi) const;
   bool Admissible(const Node& n, double m, double v, double a, double* lo, double* hi) const;
+  // The tangential jerks [lo, hi] that keep every axis' jerk within the limits `l` times m at
+  // node n in the state (v, a) (the jerk part of Admissible), or false when they do not meet.
+  bool JerkInterval(const Node& n, const LookAheadLimits& l, double m, double v, double a,
+                    double* lo, double* hi) const;
   // The largest v' <= v with (v', a) admissible at `n`; -1 if none.
   double Clip(const Node& n, double a, double v) const;
   // v_max(a) of a boundary, -1 outside it: the chords between its points (they read a concave
