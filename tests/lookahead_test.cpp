@@ -143,6 +143,17 @@ double MedianOverLoweredLimits(const Motion& motion) {
   return times[times.size() / 2];
 }
 
+// The motion time of samples/jobs/NAME.toml run whole (passes, links, the verifier) by `planner`
+// at `fraction` of its limits; its setpoints must pass the verifier.
+double SampleMotion(const std::string& name, PlannerKind planner, double fraction = 1.0) {
+  auto job = io::LoadJob(test::Source("samples/jobs/" + name + ".toml"));
+  job.vpop.planner = planner;
+  job.vpop.limit_fraction = fraction;
+  const io::RunResult r = io::RunJob(job);
+  EXPECT_LE(r.verify.worst_ratio, 1.0) << name << " at " << fraction;
+  return r.verify.motion_time_s;
+}
+
 double MedianMotion(const PathSource& path, const Machine& machine, interp::VpopOptions o,
                     PlannerKind planner) {
   return MedianOverLoweredLimits([&](double fraction) {
@@ -185,13 +196,8 @@ TEST(LookAhead, TridentTipsAreBrakedIntoAsHardAsTheTurnAllows) {
 // bench/spread.py's eight draws).
 TEST(LookAhead, TheEndOfAPassIsLandedNoSlowerThanByThePapersPlanner) {
   const auto median = [](PlannerKind planner) {
-    auto job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_head_table.toml"));
-    job.vpop.planner = planner;
     return MedianOverLoweredLimits([&](double fraction) {
-      job.vpop.limit_fraction = fraction;
-      const io::RunResult r = io::RunJob(job);
-      EXPECT_LE(r.verify.worst_ratio, 1.0) << fraction;
-      return r.verify.motion_time_s;
+      return SampleMotion("surface_tilt10_head_table", planner, fraction);
     });
   };
   EXPECT_LE(median(PlannerKind::kLookAhead), 1.005 * median(PlannerKind::kVpop));
@@ -208,14 +214,8 @@ TEST(LookAhead, TheEndOfAPassIsLandedNoSlowerThanByThePapersPlanner) {
 TEST(LookAhead, WhereTheAxesAllowMoreThanTheProfileHeldItIsNoSlowerThanThePapersPlanner) {
   for (const char* name : {"surface_tilt10_xyzbc_trt", "five_axis_g1"}) {
     SCOPED_TRACE(name);
-    const auto motion = [&](PlannerKind planner) {
-      auto job = io::LoadJob(test::Source(std::string("samples/jobs/") + name + ".toml"));
-      job.vpop.planner = planner;
-      const io::RunResult r = io::RunJob(job);
-      EXPECT_LE(r.verify.worst_ratio, 1.0);
-      return r.verify.motion_time_s;
-    };
-    EXPECT_LE(motion(PlannerKind::kLookAhead), 1.005 * motion(PlannerKind::kVpop));
+    EXPECT_LE(SampleMotion(name, PlannerKind::kLookAhead),
+              1.005 * SampleMotion(name, PlannerKind::kVpop));
   }
 }
 
