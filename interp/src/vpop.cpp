@@ -294,15 +294,20 @@ class Planner {
                   double feed) const;
   bool Solve(const History& h, const Box& box, double lo, double hi, double target, Step* out,
              LimiterId* by);
-  enum class Mode { kGreedy, kBrake };
+  // kGreedy: the planner's step. kBrake: the stop law of §2.3, which the back-off runs. kStop: the
+  // stop law, no faster than the greedy step's caps allow (the look-ahead planner's stop proofs).
+  enum class Mode { kGreedy, kBrake, kStop };
   bool Produce(const History& h, Mode mode, Step* out);
 
   // ---- back-off
   // Runs the brake law from step m until rest, or (when `pass_s` is finite) until it has carried
   // the motion `margin` periods beyond arc length `pass_s` without an empty step. `record`, when
-  // given, receives every step of the law.
+  // given, receives every step of the law. `law` is kBrake or kStop.
   bool Brake(long m, Step* first, double pass_s = INFINITY, long margin = 0,
-             std::vector<Step>* record = nullptr);
+             std::vector<Step>* record = nullptr, Mode law = Mode::kBrake);
+  // The law the stop from step m is proven with: kStop for the look-ahead planner's proofs of the
+  // commit horizon, kBrake otherwise.
+  Mode ProofLaw() const { return profile_ ? Mode::kStop : Mode::kBrake; }
   void BackOff(long failed);
   void Commit(long upto);
   // For sinks that want it: the stop to rest from the last step handed over.
@@ -331,28 +336,33 @@ class Planner {
   long committed_ = 0;  // steps with a global index below this were handed to the sink
   long safe_ = 0;       // latest step from which a stop to rest is proven
   long hint_ = 0;       // latest step whose brake law got past the last failure (>= safe_)
-  // The brake law's steps from step stop_from_ (a proven-safe step), for OfferStop.
+  // The stop law's steps from step stop_from_ (a proven-safe step), for OfferStop and for a
+  // back-off that goes back to that step (the law it was proven with may not be kBrake).
   std::vector<Step> stop_, trial_stop_;
   long stop_from_ = -1;
+  Mode safe_law_ = Mode::kBrake;  // the law the stop from safe_ was proven with
+  long last_proof_ = -1;          // the latest step a stop proof of the commit horizon started from
   VpopSummary summary_;
   // The brake law's steps from step `from` on (the law is a function of the three steps it
   // starts from): the last run that got through, and the one being tried.
   struct BrakeRun {
     long from = -1;
+    Mode law = Mode::kBrake;
     Step start[3];                 // steps from - 2 .. from when the run was made
     std::optional<double> length;  // the path length known then (it bounds the law's steps)
     std::vector<Step> steps;       // steps from + 1, from + 2, ...
     bool failed = false;           // the law found no step after the last one
-    void Start(const Planner& planner, long m) {
+    void Start(const Planner& planner, long m, Mode with) {
       from = m;
+      law = with;
       for (int k = 0; k < 3; ++k) start[k] = planner.At(m - 2 + k);
       length = planner.length_;
       steps.clear();
       failed = false;
     }
     // Whether the planner's steps up to m are this run's (so the law from m continues it).
-    bool Continues(const Planner& planner, long m) const {
-      if (from < 0 || m < from || m - from > static_cast<long>(steps.size()) ||
+    bool Continues(const Planner& planner, long m, Mode with) const {
+      if (from < 0 || law != with || m < from || m - from > static_cast<long>(steps.size()) ||
           length != planner.length_) {
         return false;
       }
@@ -383,9 +393,10 @@ class Planner {
   int repairs_here_ = 0;
   // The largest arc length in [lo, target] whose state the look-ahead holds viable, or, when
   // none is, the one closest to viable (counted as a refusal).
-  // `floored`, when given, receives `target` raised to the releasable floor.
+  // `floored`, when given, receives `target` raised to the releasable floor; `refused`, whether
+  // no state was viable.
   double ProfileCap(const History& h, double lo, double hi, double target,
-                    double* floored = nullptr);
+                    double* floored = nullptr, bool* refused = nullptr);
 };
 
 [[noreturn]] void Planner::FailAt(const Step& where, const std::string& what) const {
@@ -874,7 +885,8 @@ bool Planner::Solve(const History& h, const Box& box, double lo, double hi, doub
   return true;
 }
 
-double Planner::ProfileCap(const History& h, double lo, double hi, double target, double* floored) {
+double Planner::ProfileCap(const History& h, double lo, double hi, double target, double* floored,
+                           bool* refused) {
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
   // The next step as a function of its path jerk j (backward differences), and the slack of the
@@ -943,7 +955,7 @@ double Planner::ProfileCap(const History& h, double lo, double hi, double target
   if (!found) {
     // Nothing viable: the state closest to the boundary (a refusal; the exact step still holds
     // every limit).
-    ++summary_.profile_refusals;
+    if (refused) *refused = true;
     return best;
   }
   int side = 0;
@@ -987,7 +999,9 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       // (From rest, the first step is a jerk's worth: it can always be braked again. Over the
       // last stretch of the path, LookAheadOptions::law_zone_mm, the law lands: the profile's
       // boundary where that stretch begins holds the states the law lands from.)
-      const double cap = ProfileCap(h, t.lo, t.hi, target, &target);
+      bool refused = false;
+      const double cap = ProfileCap(h, t.lo, t.hi, target, &target, &refused);
+      if (refused) ++summary_.profile_refusals;
       if (cap < target) {
         target = std::max(cap, t.lo);
         by = {Limiter::kProfileLookAhead, -1};
@@ -1017,6 +1031,20 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
     if (std::abs(target - s0) <= 1e-15 * (1.0 + std::abs(s0))) target = s0;
     target = std::clamp(target, t.lo, t.hi);
     by = {Limiter::kBackOff, -1};
+    if (mode == Mode::kStop) {
+      // Planned blind, the law brakes past what lies ahead: from full feed before a corner, or
+      // before the end of a short path, it reaches the corner or the end still fast, and the
+      // proof fails where the greedy step, which slows for them, gets through (on the tilted
+      // head-table pass 830 of 834 proofs under a 256-period horizon failed at the path's end).
+      // No faster than the greedy step's own caps, then: the end law, the viable feeds ahead.
+      const auto [soft, soft_by] = LookAhead(h, e);
+      target = std::max(std::min(target, soft), t.lo);
+      const bool landing = soft_by.kind == Limiter::kEndLookAhead && soft <= target && length_ &&
+                           *length_ - h.p0->s <= o_.look_ahead.law_zone_mm;
+      if (profile_ && !AtRest(h) && !landing) {
+        target = std::max(std::min(target, ProfileCap(h, t.lo, t.hi, target)), t.lo);
+      }
+    }
   }
   LimiterId axis_by = by;
   if (!Solve(h, box, t.lo, t.hi, target, out, &axis_by)) return false;
@@ -1062,18 +1090,19 @@ bool Planner::Repair(long j) {
 
 // Runs the brake law from step m (steps after m ignored) until rest. On success, `first` is its
 // first step.
-bool Planner::Brake(long m, Step* first, double pass_s, long margin, std::vector<Step>* record) {
+bool Planner::Brake(long m, Step* first, double pass_s, long margin, std::vector<Step>* record,
+                    Mode law) {
   ++summary_.brake_tests;
   if (record) record->clear();
   // Continue the last run that got through when it started at or before m and the steps since
   // are its own (the back-off keeps the first step of its run: the next test starts there).
   BrakeRun* run = &scratch_run_;
   long p = 0;  // position in run->steps of the step after m
-  if (o_.reuse_brake_runs && last_run_.Continues(*this, m)) {
+  if (o_.reuse_brake_runs && last_run_.Continues(*this, m, law)) {
     run = &last_run_;
     p = m - last_run_.from;
   } else {
-    scratch_run_.Start(*this, m);
+    scratch_run_.Start(*this, m, law);
   }
   const auto through = [&] {
     if (run == &scratch_run_) std::swap(last_run_, scratch_run_);
@@ -1097,7 +1126,7 @@ bool Planner::Brake(long m, Step* first, double pass_s, long margin, std::vector
     if (p < static_cast<long>(run->steps.size())) {
       next = run->steps[static_cast<std::size_t>(p)];
     } else {
-      if (run->failed || !Produce(h, Mode::kBrake, &next)) {
+      if (run->failed || !Produce(h, law, &next)) {
         run->failed = true;
         return false;
       }
@@ -1121,12 +1150,27 @@ void Planner::BackOff(long failed) {
   ++summary_.back_offs;
   const long hi = failed - 1;
   const double pass_s = At(hi).s;
+  // The stop from stop_from_ is proven and kept (stop_). Proven with kStop, it is not run again:
+  // that law reads the look-ahead, which may have changed since.
+  const bool kept = safe_law_ == Mode::kStop;
+  const auto brake = [&](long m, double pass, long margin, Step* first) {
+    if (kept && m == stop_from_ && !std::isfinite(pass)) {
+      if (stop_.empty()) {
+        *first = At(m);
+        first->limiter = {Limiter::kRest, -1};
+      } else {
+        *first = stop_.front();
+      }
+      return true;
+    }
+    return Brake(m, first, pass, margin);
+  };
   const auto search = [&](long lo, double pass, long margin, long* good, Step* first) {
     long bad = -1;
     for (long stride = 1, m = hi;; stride *= 2) {
       if (m <= lo) m = lo;
       Step candidate;
-      if (Brake(m, &candidate, pass, margin)) {
+      if (brake(m, pass, margin, &candidate)) {
         *good = m;
         *first = candidate;
         break;
@@ -1138,7 +1182,7 @@ void Planner::BackOff(long failed) {
     while (bad > *good + 1) {
       const long mid = *good + (bad - *good) / 2;
       Step candidate;
-      if (Brake(mid, &candidate, pass, margin)) {
+      if (brake(mid, pass, margin, &candidate)) {
         *good = mid;
         *first = candidate;
       } else {
@@ -1156,6 +1200,13 @@ void Planner::BackOff(long failed) {
       FailAt(At(floor),
              "no stop to rest within the limits exists from here (this should not "
              "happen: please report it with the job)");
+    }
+    if (kept && good == stop_from_) {
+      // The rest of the kept stop is the stop from the next step.
+      if (!stop_.empty()) stop_.erase(stop_.begin());
+      stop_from_ = good + 1;
+    } else {
+      safe_law_ = Mode::kBrake;
     }
     safe_ = good + 1;
   }
@@ -1215,7 +1266,7 @@ void Planner::OfferStop() {
     for (long g = committed_; g <= safe_; ++g) stop.push_back(ToSetpoint(At(g), g));
     if (stop_from_ != safe_) {
       Step first;
-      if (!Brake(safe_, &first, INFINITY, 0, &trial_stop_)) {
+      if (!Brake(safe_, &first, INFINITY, 0, &trial_stop_, safe_law_)) {
         FailAt(At(safe_),
                "the stop law failed from a step where it had been proven (this should not "
                "happen: please report it with the job)");
@@ -1304,17 +1355,37 @@ VpopSummary Planner::Run() {
       BackOff(j + 1);
     }
     if (static_cast<std::size_t>(Last() - committed_) > o_.commit_horizon) {
-      // Prove a stop from the newest step so that the old ones can be handed over.
-      Step first;
-      if (Last() - safe_ >= check_every) {
-        if (Brake(Last(), &first, INFINITY, 0, sink_.WantsStops() ? &trial_stop_ : nullptr)) {
-          safe_ = hint_ = Last();
-          if (sink_.WantsStops()) {
-            stop_.swap(trial_stop_);
-            stop_from_ = safe_;
+      // Prove a stop from the newest step so that the old ones can be handed over. The paper's
+      // planner backs off from a failed proof at once (and so does each of its slow points'
+      // backward plans, which a horizon bounds: its figures depend on it). The look-ahead
+      // planner does not: where the path turns, the stop law fails from most states the greedy
+      // step passes through (it brakes into the turn), and braking one period after each failed
+      // proof slowed every such stretch and cost a thousand brake runs a second. The greedy step
+      // goes on, the proof is tried again `check_every` steps later, and only once twice the
+      // horizon is open does the planner look back for an earlier step to prove, and, finding
+      // none, back off.
+      const auto prove = [&](long m) {
+        Step first;
+        if (!Brake(m, &first, INFINITY, 0, &trial_stop_, ProofLaw())) return false;
+        // Kept: a back-off may go back to this step, and a sink may want the stop.
+        safe_ = hint_ = m;
+        safe_law_ = ProofLaw();
+        stop_.swap(trial_stop_);
+        stop_from_ = safe_;
+        return true;
+      };
+      if (Last() - safe_ >= check_every && (!profile_ || Last() - last_proof_ >= check_every)) {
+        last_proof_ = Last();
+        if (!prove(Last())) {
+          if (!profile_) {
+            BackOff(Last() + 1);
+          } else if (Last() - committed_ > 2 * static_cast<long>(o_.commit_horizon)) {
+            bool proven = false;
+            for (long back = 8; !proven && Last() - back > safe_; back *= 2) {
+              proven = prove(Last() - back);
+            }
+            if (!proven) BackOff(Last() + 1);
           }
-        } else {
-          BackOff(Last() + 1);
         }
       }
       Commit(std::min(safe_, Last() - static_cast<long>(o_.commit_horizon) / 2));
