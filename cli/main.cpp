@@ -150,8 +150,8 @@ void ApplyPlanner(const std::string& planner, dtis::io::Job* job) {
 }
 
 const char* const kPlannerHelp =
-    "vpop (the paper's back-off) or lookahead (the exact step capped by the viable feeds "
-    "ahead); overrides the job's [interpolator] planner";
+    "lookahead (the exact step capped by the viable feeds ahead; the default) or vpop (the "
+    "paper's back-off); overrides the job's [interpolator] planner";
 
 struct RunArgs {
   std::string job, output, limiters, report, planner;

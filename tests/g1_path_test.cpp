@@ -544,6 +544,7 @@ TEST(G1Path, FeedIsSymmetricAroundASymmetricCorner) {
   const geometry::G1Path path({0, 0, 0}, Vector3d::UnitZ(), moves, *machine, co);
   ASSERT_EQ(path.SlowPoints().size(), 1u);
   interp::VpopOptions o;
+  o.planner = interp::PlannerKind::kVpop;  // the paper's slow-point law (Eq. 8)
   o.feed_mm_s = 50.0;
   test::Collect sink;
   const auto summary = interp::PlanVpop(path, *machine, o, sink);

@@ -29,11 +29,18 @@ Planned Plan(const PathSource& path, const Machine& machine, const interp::VpopO
   return test::PlanAndVerify(path, machine, o);
 }
 
+// Options for the paper's planner (the default is the look-ahead).
+interp::VpopOptions Papers() {
+  interp::VpopOptions o;
+  o.planner = interp::PlannerKind::kVpop;
+  return o;
+}
+
 TEST(Vpop, StraightLineMatchesTheJerkLimitedClosedForm) {
   // 100 mm, F 5 m/min, J 5 m/s^3, A 2.5 m/s^2: L/F + 2 sqrt(F/J) = 1.458199 s.
   const auto machine = Cartesian(500.0, 2500.0, 5000.0);
   const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
-  interp::VpopOptions o;
+  interp::VpopOptions o = Papers();
   o.feed_mm_s = 5000.0 / 60.0;
   const Planned p = Plan(line, *machine, o);
   const double closed_form = 100.0 / o.feed_mm_s + 2.0 * std::sqrt(o.feed_mm_s / 5000.0);
@@ -76,7 +83,7 @@ TEST(Vpop, TangentialLimitsBelowTheAxisLimitsAreFollowedWithoutBackOff) {
   const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
   const double F = 5000.0 / 60.0;
   {
-    interp::VpopOptions o;
+    interp::VpopOptions o = Papers();
     o.feed_mm_s = F;
     o.tangential_jerk_mm_s3 = 1000.0;  // a fifth of the axis jerk; sqrt(F J) < the acceleration
     const Planned p = Plan(line, *machine, o);
@@ -86,7 +93,7 @@ TEST(Vpop, TangentialLimitsBelowTheAxisLimitsAreFollowedWithoutBackOff) {
     EXPECT_TRUE(p.report.Passed()) << interp::FormatReport(p.report);
   }
   {
-    interp::VpopOptions o;
+    interp::VpopOptions o = Papers();
     o.feed_mm_s = F;
     o.tangential_acceleration_mm_s2 = 200.0;  // a twelfth of the axis acceleration
     const Planned p = Plan(line, *machine, o);
@@ -130,7 +137,7 @@ struct CircleCase {
 std::pair<double, double> MiddleTurnFeed(const CircleCase& c) {
   const auto machine = Cartesian(1e4, c.A, c.J);
   const geometry::CurvePath path(Circle(c.R, c.turns), Eigen::Vector3d::UnitZ());
-  interp::VpopOptions o;
+  interp::VpopOptions o = Papers();
   o.feed_mm_s = c.F;
   o.tangential_jerk_mm_s3 = c.tangential_jerk;
   const Planned p = Plan(path, *machine, o);
@@ -308,9 +315,11 @@ TEST(Vpop, FeedNeverExceedsTheProgrammedFeed) {
 TEST(Vpop, BrakeTestsThatContinueTheLastRunChangeNoSetpoint) {
   const auto same = [](const PathSource& path, const Machine& machine,
                        const interp::VpopOptions& options, const std::string& name) {
-    interp::VpopOptions fresh = options;
+    interp::VpopOptions paper = options;
+    paper.planner = interp::PlannerKind::kVpop;
+    interp::VpopOptions fresh = paper;
     fresh.reuse_brake_runs = false;
-    const Planned reused = Plan(path, machine, options);
+    const Planned reused = Plan(path, machine, paper);
     const Planned recomputed = Plan(path, machine, fresh);
     EXPECT_EQ(reused.summary.back_offs, recomputed.summary.back_offs) << name;
     EXPECT_EQ(reused.summary.brake_tests, recomputed.summary.brake_tests) << name;

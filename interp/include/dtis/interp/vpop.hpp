@@ -34,11 +34,11 @@ namespace dtis::interp {
 // How the exact step looks ahead.
 enum class PlannerKind : std::uint8_t {
   // The paper's: the greedy step learns of a feed valley by failing in it, and the dichotomy of
-  // §2.3 backs off to the latest step from which a brake gets through.
+  // §2.3 backs off to the latest step from which a brake gets through. Kept so that the papers'
+  // figures stay reproducible.
   kVpop,
   // The exact step capped by a look-ahead of the viable feeds (viable_feeds.hpp); the paper's
-  // back-off
-  // stays as the last resort.
+  // back-off stays as the last resort. The default.
   kLookAhead,
 };
 const char* PlannerName(PlannerKind planner);
@@ -49,7 +49,7 @@ std::optional<PlannerKind> PlannerFromName(std::string_view name);
 inline constexpr double kMaxMotionS = 24.0 * 3600.0;
 
 struct VpopOptions {
-  PlannerKind planner = PlannerKind::kVpop;
+  PlannerKind planner = PlannerKind::kLookAhead;
   LookAheadOptions look_ahead;  // planner = kLookAhead
   double period_s = 1e-3;       // dt: setpoints are exactly this far apart, s
   double feed_mm_s = 0.0;       // programmed feed F, the upper bound of (s_{j+1} - s_j) / dt, mm/s
