@@ -170,8 +170,9 @@ def tables(run, build_type):
 
 {planner_table(b)}
 
-**Surface jobs** (`Surface/`: end to end, STEP read, passes built, traced and planned;
-`SurfacePlan/`: the planning alone with the part loaded, what a CNC running the job inline pays):
+**Surface jobs** with the default planner (`lookahead`; `Surface/`: end to end, STEP read,
+passes built, traced and planned; `SurfacePlan/`: the planning alone with the part loaded, what a
+CNC running the job inline pays):
 
 {surface_table(b)}
 
