@@ -7,6 +7,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "dtis/interp/program.hpp"
@@ -58,11 +59,18 @@ void ReportPlanning(benchmark::State& state, long setpoints, double motion,
       ->Unit(benchmark::kMillisecond)                                      \
       ->Iterations(1)
 
+// The commit horizon of `dtis stream` (StreamOptions): Streamed/ plans under it, what a stream's
+// planner thread does; the others plan whole, as `dtis run` does.
+constexpr std::size_t kStreamHorizon = 256;
+constexpr std::size_t kWhole = std::numeric_limits<std::size_t>::max();
+
 // A curve or line sample planned alone (the path built once), one thread.
 //   build/bench/dtis_bench --benchmark_filter=Plan/
-void Plan(benchmark::State& state, const char* job_file, PlannerKind planner) {
+void Plan(benchmark::State& state, const char* job_file, PlannerKind planner,
+          std::size_t horizon = kWhole) {
   auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
+  job.vpop.commit_horizon = horizon;
   const auto machine = dtis::io::LoadJobMachine(job);
   const auto path = dtis::io::BuildPath(job);
   long setpoints = 0;
@@ -149,10 +157,12 @@ void SurfacePlan(benchmark::State& state, const char* job_file) {
 
 // A surface job's passes and links planned with either planner, one thread, the part loaded.
 //   build/bench/dtis_bench --benchmark_filter=SurfacePlanner/
-void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind planner) {
+void SurfacePlanner(benchmark::State& state, const char* job_file, PlannerKind planner,
+                    std::size_t horizon = kWhole) {
   auto job = dtis::io::LoadJob(job_file[0] == '/' ? std::string(job_file)
                                                   : std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
+  job.vpop.commit_horizon = horizon;
   const auto machine = dtis::io::LoadJobMachine(job);
   const auto setup = dtis::io::SetUpSurface(job);
   std::vector<const dtis::PathSource*> passes;
@@ -274,14 +284,44 @@ void GcodePlanOn(benchmark::State& state, const dtis::io::GcodeProgram& program,
 }
 
 // A G-code sample with either planner (its program read once).
-void GcodePlanSample(benchmark::State& state, const char* job_file, PlannerKind planner) {
+void GcodePlanSample(benchmark::State& state, const char* job_file, PlannerKind planner,
+                     std::size_t horizon = kWhole) {
   auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   job.vpop.planner = planner;
+  job.vpop.commit_horizon = horizon;
   GcodePlanOn(state, dtis::io::ReadGcode(job.path.gcode_file), job);
 }
 DTIS_PLANNERS(GcodePlanSample, lock, "samples/jobs/lock.toml");
 DTIS_PLANNERS_ONCE(GcodePlanSample, fine_wave, "samples/jobs/fine_wave.toml");
 DTIS_PLANNERS_ONCE(GcodePlanSample, five_axis_g1, "samples/jobs/five_axis_g1.toml");
+
+// A sample planned as `dtis stream` plans it, under its commit horizon (each hand-over waits for a
+// proven stop to rest), one thread: the real-time factor a stream of it has.
+//   build/bench/dtis_bench --benchmark_filter=Streamed/
+void Streamed(benchmark::State& state, const char* job_file, PlannerKind planner) {
+  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  if (job.surface) {
+    SurfacePlanner(state, job_file, planner, kStreamHorizon);
+  } else if (job.path.kind == dtis::io::PathSpec::Kind::kGcode) {
+    GcodePlanSample(state, job_file, planner, kStreamHorizon);
+  } else {
+    Plan(state, job_file, planner, kStreamHorizon);
+  }
+}
+DTIS_PLANNERS_ONCE(Streamed, trident, "samples/jobs/trident.toml");
+DTIS_PLANNERS_ONCE(Streamed, circle_300, "samples/jobs/circle_300.toml");
+DTIS_PLANNERS_ONCE(Streamed, open_pocket_xyzac, "samples/jobs/open_pocket_xyzac.toml");
+DTIS_PLANNERS_ONCE(Streamed, lock, "samples/jobs/lock.toml");
+DTIS_PLANNERS_ONCE(Streamed, fine_wave, "samples/jobs/fine_wave.toml");
+DTIS_PLANNERS_ONCE(Streamed, five_axis_g1, "samples/jobs/five_axis_g1.toml");
+DTIS_PLANNERS_ONCE(Streamed, tilt10_head_table, "samples/jobs/surface_tilt10_head_table.toml");
+DTIS_PLANNERS_ONCE(Streamed, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml");
+DTIS_PLANNERS_ONCE(Streamed, leading_line_3axis, "samples/jobs/surface_leading_line_3axis.toml");
+// The paper's planner streams the singular pass at 0.02x (three minutes): not benchmarked.
+BENCHMARK_CAPTURE(Streamed, tilt10_singular_lookahead, "samples/jobs/surface_tilt10_singular.toml",
+                  PlannerKind::kLookAhead)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 void GcodePlan100k(benchmark::State& state) {
   const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/samples/jobs/lock.toml");

@@ -21,6 +21,7 @@ import tempfile
 from markdown_block import replace_block
 
 FILTER = ("Plan/|GcodePlanSample/|SurfacePlanner/|SurfacePlannerHoles/|Surface/|SurfacePlan/|"
+          "Streamed/|"
           "SurfaceD2|CurvePoint|"
           "CurveD3|GcodeRead|GcodeLoad1M|Export")
 
@@ -35,6 +36,9 @@ PLANNED = [
     ("SurfacePlannerHoles", "holes"),
 ]
 PLANNERS = ("vpop", "lookahead")
+# The samples the streamed table lists (Streamed/NAME_PLANNER), in its order.
+STREAMED = ["trident", "circle_300", "open_pocket_xyzac", "lock", "fine_wave", "five_axis_g1",
+            "tilt10_head_table", "plane_cl_3axis", "leading_line_3axis", "tilt10_singular"]
 
 
 def run_bench(bench, save=None):
@@ -104,6 +108,24 @@ def planner_table(b):
     return "\n".join(rows)
 
 
+def streamed_table(b):
+    rows = ["| sample | motion, vpop (s) | motion, lookahead (s) | real time, vpop | "
+            "real time, lookahead | back-offs, vpop / lookahead |",
+            "|---|---:|---:|---:|---:|---|"]
+    for sample in STREAMED:
+        runs = {p: b.get(f"Streamed/{sample}_{p}") for p in PLANNERS}
+        if not runs["lookahead"]:
+            continue
+        v, l = runs["vpop"], runs["lookahead"]
+        dash = "-"
+        rows.append(
+            f"| `Streamed/{sample}` | {format(v['motion_s'], '.3f') if v else dash} | "
+            f"{l['motion_s']:.3f} | {factor(v['real_time_factor']) if v else dash} | "
+            f"{factor(l['real_time_factor'])} | "
+            f"{count(v['back_offs']) if v else dash} / {count(l['back_offs'])} |")
+    return "\n".join(rows)
+
+
 def surface_table(b):
     rows = ["| benchmark | threads | time per job | real time | evaluations per setpoint | "
             "Newton iterations per setpoint |", "|---|---:|---:|---:|---:|---:|"]
@@ -169,6 +191,11 @@ def tables(run, build_type):
 **Planners** (one core, Δt = 1 ms; real time: seconds of motion planned per second of compute):
 
 {planner_table(b)}
+
+**Streamed** (the same, planned under the 256-period commit horizon of `dtis stream`: what a
+stream's planner thread does; `vpop` is not run on the singular pass, where it takes minutes):
+
+{streamed_table(b)}
 
 **Surface jobs** with the default planner (`lookahead`; `Surface/`: end to end, STEP read,
 passes built, traced and planned; `SurfacePlan/`: the planning alone with the part loaded, what a
