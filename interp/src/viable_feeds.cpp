@@ -669,18 +669,10 @@ ViableFeeds::Node ViableFeeds::Sample(double s, const PathState& hint, const Axi
   const double length = length_.value_or(INFINITY);
   const auto pose_at = [&](double x, PathState* st, AxisVector* q, const AxisVector& near) {
     const PathSample p = path_.At(*st, x);
-    // The exact step's words (vpop.cpp), so that a path fails alike with either planner.
-    if (p.status == PathStatus::kLeftDomain) {
-      throw Error(
-          "cannot follow the path at {}: the path source left its domain before arc "
-          "length {} mm",
-          path_.Describe(*st), x);
-    }
-    if (p.status == PathStatus::kNoConvergence) {
-      throw Error(
-          "cannot follow the path at {}: the path source did not converge at arc length "
-          "{} mm",
-          path_.Describe(*st), x);
+    // In the exact step's words (vpop.cpp), so that a path fails alike with either planner.
+    if (p.status == PathStatus::kLeftDomain || p.status == PathStatus::kNoConvergence) {
+      throw Error("cannot follow the path at {}: {}", path_.Describe(*st),
+                  DescribePathFailure(p.status, x));
     }
     *st = p.state;
     const InverseResult r = machine_.Inverse(p.pose, &near, q);

@@ -414,9 +414,8 @@ bool Planner::Evaluate(const Step& from, double s, Step* out) {
       if (!length_ || sample.state.s < *length_) length_ = sample.state.s;
       break;
     case PathStatus::kLeftDomain:
-      FailAt(from, fmt::format("the path source left its domain before arc length {} mm", s));
     case PathStatus::kNoConvergence:
-      FailAt(from, fmt::format("the path source did not converge at arc length {} mm", s));
+      FailAt(from, DescribePathFailure(sample.status, s));
   }
   out->s = sample.state.s;
   out->state = sample.state;

@@ -31,6 +31,10 @@ enum class PathStatus : std::uint8_t {
   kNoConvergence,  // the solve did not converge to its tolerance
 };
 
+// What a source that answered `status` (kLeftDomain or kNoConvergence) at trial arc length s
+// failed to do, for an error message: "the path source did not converge at arc length 12.5 mm".
+std::string DescribePathFailure(PathStatus status, double s);
+
 struct PathSample {
   PathStatus status = PathStatus::kOk;
   PathState state;
