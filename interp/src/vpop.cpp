@@ -298,6 +298,12 @@ class Planner {
   // stop law, no faster than the greedy step's caps allow (the look-ahead planner's stop proofs).
   enum class Mode { kGreedy, kBrake, kStop };
   bool Produce(const History& h, Mode mode, Step* out);
+  // Whether the step lands the motion at the path's end: the end law binds it (`binding`) over the
+  // last LookAheadOptions::law_zone_mm, where the law is followed and not the profile.
+  bool Landing(const History& h, Limiter binding) const {
+    return binding == Limiter::kEndLookAhead && length_ &&
+           *length_ - h.p0->s <= o_.look_ahead.law_zone_mm;
+  }
 
   // ---- back-off
   // Runs the brake law from step m until rest, or (when `pass_s` is finite) until it has carried
@@ -992,9 +998,7 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       target = std::max(soft, t.lo);
       by = soft > t.lo ? soft_by : t.lo_by;
     }
-    const bool landing = by.kind == Limiter::kEndLookAhead && length_ &&
-                         *length_ - h.p0->s <= o_.look_ahead.law_zone_mm;
-    if (profile_ && !AtRest(h) && !landing) {
+    if (profile_ && !AtRest(h) && !Landing(h, by.kind)) {
       // (From rest, the first step is a jerk's worth: it can always be braked again. Over the
       // last stretch of the path, LookAheadOptions::law_zone_mm, the law lands: the profile's
       // boundary where that stretch begins holds the states the law lands from.)
@@ -1038,9 +1042,8 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       // No faster than the greedy step's own caps, then: the end law, the viable feeds ahead.
       const auto [soft, soft_by] = LookAhead(h, e);
       target = std::max(std::min(target, soft), t.lo);
-      const bool landing = soft_by.kind == Limiter::kEndLookAhead && soft <= target && length_ &&
-                           *length_ - h.p0->s <= o_.look_ahead.law_zone_mm;
-      if (profile_ && !AtRest(h) && !landing) {
+      const Limiter binding = soft <= target ? soft_by.kind : Limiter::kBackOff;
+      if (profile_ && !AtRest(h) && !Landing(h, binding)) {
         target = std::max(std::min(target, ProfileCap(h, t.lo, t.hi, target)), t.lo);
       }
     }
