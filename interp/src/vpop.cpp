@@ -1366,14 +1366,18 @@ VpopSummary Planner::Run() {
       // goes on, the proof is tried again `check_every` steps later, and only once twice the
       // horizon is open does the planner look back for an earlier step to prove, and, finding
       // none, back off.
+      // The stop is kept where a sink wants it or a back-off may reuse it (proven with kStop,
+      // BackOff); the paper's law is run again from its three steps where needed.
+      const bool keep = sink_.WantsStops() || ProofLaw() == Mode::kStop;
       const auto prove = [&](long m) {
         Step first;
-        if (!Brake(m, &first, INFINITY, 0, &trial_stop_, ProofLaw())) return false;
-        // Kept: a back-off may go back to this step, and a sink may want the stop.
+        if (!Brake(m, &first, INFINITY, 0, keep ? &trial_stop_ : nullptr, ProofLaw())) return false;
         safe_ = hint_ = m;
         safe_law_ = ProofLaw();
-        stop_.swap(trial_stop_);
-        stop_from_ = safe_;
+        if (keep) {
+          stop_.swap(trial_stop_);
+          stop_from_ = safe_;
+        }
         return true;
       };
       if (Last() - safe_ >= check_every && (!profile_ || Last() - last_proof_ >= check_every)) {
