@@ -51,27 +51,9 @@ constexpr int kMaxReleaseNodes = 64;
 double TimeToCover(double v, double a, double j, double h) {
   const auto covered = [&](double x) { return x * (v + x * (a / 2.0 + x * j / 6.0)); };
   const auto feed = [&](double x) { return v + x * (a + x * j / 2.0); };
-  // Braking: the first time the feed v + a t + j t^2 / 2 reaches zero. Short of h by then, the
-  // motion comes to rest first.
-  double rest = INFINITY;
-  if (a < 0.0 || j < 0.0) {
-    const double c = j / 2.0, disc = a * a - 4.0 * c * v;
-    if (std::abs(c) * v <= 1e-12 * a * a) {
-      if (a < 0.0) rest = -v / a;
-    } else if (disc >= 0.0) {
-      // The roots q / c and v / q (q from the sign of a, without cancellation).
-      const double q = -0.5 * (a + std::copysign(std::sqrt(disc), a));
-      for (const double r : {q / c, q != 0.0 ? v / q : INFINITY}) {
-        if (r >= 0.0) rest = std::min(rest, r);
-      }
-    }
-    if (covered(rest) < h) return NAN;
-  }
   // Where the feed dominates, the series of the root in x = h / v (the reversion of
   // h = v t + a t^2 / 2 + j t^3 / 6) to third order: over a grid stretch it is within a few parts
-  // in 1e6, and Newton needs one or two steps. Else the least of the times the feed, the
-  // acceleration or the jerk alone would take (an upper bound of the root where all three push
-  // forward, and Newton then closes in from above).
+  // in 1e6, and Newton needs one or two steps.
   double t = INFINITY;
   const double x = v > 1e-9 ? h / v : INFINITY;
   if (std::isfinite(x)) {
@@ -79,6 +61,25 @@ double TimeToCover(double v, double a, double j, double h) {
     if (std::abs(c2 * x) < 0.25 && std::abs(c3 * x * x) < 0.25) t = x * (1.0 + x * (c2 + x * c3));
   }
   if (!std::isfinite(t)) {
+    // Braking: the first time the feed v + a t + j t^2 / 2 reaches zero. Short of h by then, the
+    // motion comes to rest first. (From the series' start Newton finds a root past that rest if
+    // any, where the feed has turned negative on the way: the checks after it tell.)
+    double rest = INFINITY;
+    if (a < 0.0 || j < 0.0) {
+      const double c = j / 2.0, disc = a * a - 4.0 * c * v;
+      if (std::abs(c) * v <= 1e-12 * a * a) {
+        if (a < 0.0) rest = -v / a;
+      } else if (disc >= 0.0) {
+        // The roots q / c and v / q (q from the sign of a, without cancellation).
+        const double q = -0.5 * (a + std::copysign(std::sqrt(disc), a));
+        for (const double r : {q / c, q != 0.0 ? v / q : INFINITY}) {
+          if (r >= 0.0) rest = std::min(rest, r);
+        }
+      }
+      if (covered(rest) < h) return NAN;
+    }
+    // The least of the times the feed, the acceleration or the jerk alone would take (an upper
+    // bound of the root where all three push forward, and Newton then closes in from above).
     t = x;
     if (a > 0.0) t = std::min(t, std::sqrt(2.0 * h / a));
     if (j > 0.0) t = std::min(t, std::cbrt(6.0 * h / j));
