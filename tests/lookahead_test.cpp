@@ -241,5 +241,26 @@ TEST(LookAhead, UnderACommitHorizonItPlansAsFastAsWhole) {
   }
 }
 
+// The stop proofs try the paper's law planned blind first: it asks nothing of the look-ahead, and
+// where nothing lies ahead of the stop it proves it (on the circle at 300 mm/s, every proof, a
+// third less work streamed). Where the blind law brakes into a turn or past the end, the law
+// capped by the look-ahead proves instead (the head-table pass: 5 of its 7 proofs).
+TEST(LookAhead, UnderACommitHorizonTheBlindStopLawProvesWhereNothingLiesAhead) {
+  const auto proofs = [](const char* name) {
+    auto job = io::LoadJob(test::Source(std::string("samples/jobs/") + name + ".toml"));
+    job.vpop.planner = PlannerKind::kLookAhead;
+    job.vpop.commit_horizon = 256;
+    const io::RunResult r = io::RunJob(job);
+    EXPECT_LE(r.verify.worst_ratio, 1.0) << name;
+    return std::pair{r.vpop.stop_proofs, r.vpop.blind_proofs};
+  };
+  const auto [circle, circle_blind] = proofs("circle_300");
+  EXPECT_GT(circle, 5);
+  EXPECT_EQ(circle_blind, circle);
+  const auto [pass, pass_blind] = proofs("surface_tilt10_head_table");
+  EXPECT_GT(pass, 3);
+  EXPECT_LT(pass_blind, pass);
+}
+
 }  // namespace
 }  // namespace dtis

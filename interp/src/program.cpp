@@ -168,6 +168,8 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     t.profile_grid_points += p.summary.profile_grid_points;
     t.profile_refusals += p.summary.profile_refusals;
     t.profile_repairs += p.summary.profile_repairs;
+    t.stop_proofs += p.summary.stop_proofs;
+    t.blind_proofs += p.summary.blind_proofs;
     t.end_s += p.summary.end_s;
     for (std::size_t l = 0; l < t.limited_by.size(); ++l)
       t.limited_by[l] += p.summary.limited_by[l];

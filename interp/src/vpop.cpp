@@ -1396,6 +1396,8 @@ VpopSummary Planner::Run() {
           proven = Brake(m, &first, INFINITY, 0, record, law);
         }
         if (!proven) return false;
+        ++summary_.stop_proofs;
+        if (law == Mode::kBrake) ++summary_.blind_proofs;
         safe_ = hint_ = m;
         safe_law_ = law;
         if (keep) {

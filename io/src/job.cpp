@@ -995,6 +995,10 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
     }
     out += fmt::format("back-offs        {} ({} brake tests), {} evaluations\n", r.vpop.back_offs,
                        r.vpop.brake_tests, r.vpop.evaluations);
+    if (r.vpop.stop_proofs > 0) {
+      out += fmt::format("stop proofs      {} ({} with the stop law planned blind)\n",
+                         r.vpop.stop_proofs, r.vpop.blind_proofs);
+    }
     out += "limited by      ";
     for (int k = 0; k < static_cast<int>(interp::Limiter::kCount); ++k) {
       const long n = r.vpop.limited_by[static_cast<std::size_t>(k)];

@@ -161,6 +161,11 @@ struct VpopSummary {
   // planning that stretch more cautiously and stepping back to a viable state (back-offs count
   // the paper's dichotomy, the last resort).
   long profile_repairs = 0;
+  // Under a commit horizon: stops to rest proven before a hand-over, and how many of them with
+  // the paper's law planned blind (the look-ahead planner tries it first; vpop proves with it
+  // only).
+  long stop_proofs = 0;
+  long blind_proofs = 0;
   std::array<long, static_cast<int>(Limiter::kCount)> limited_by{};  // steps per limiter kind
 };
 
