@@ -311,8 +311,8 @@ class Planner {
   // given, receives every step of the law. `law` is kBrake or kStop.
   bool Brake(long m, Step* first, double pass_s = INFINITY, long margin = 0,
              std::vector<Step>* record = nullptr, Mode law = Mode::kBrake);
-  // The law the stop from step m is proven with: kStop for the look-ahead planner's proofs of the
-  // commit horizon, kBrake otherwise.
+  // The law the stops of the commit horizon are proven with: kBrake for the paper's planner;
+  // kStop for the look-ahead planner, where the blind kBrake is tried first (Run).
   Mode ProofLaw() const { return profile_ ? Mode::kStop : Mode::kBrake; }
   void BackOff(long failed);
   void Commit(long upto);
@@ -1379,20 +1379,21 @@ VpopSummary Planner::Run() {
       // a row, the next 2^k - 1 proofs (at most 15) go to the capped law at once.
       const auto prove = [&](long m) {
         std::vector<Step>* record = keep ? &trial_stop_ : nullptr;
+        const bool capped = ProofLaw() == Mode::kStop;
         Step first;
         Mode law = Mode::kBrake;
         bool proven = false;
-        if (ProofLaw() == Mode::kBrake || skip_blind_ == 0) {
-          proven = Brake(m, &first, INFINITY, 0, record, law);
-          if (ProofLaw() != Mode::kBrake) {
-            skip_blind_ = proven ? 0 : (1L << std::min(++blind_misses_, 4L)) - 1;
-            if (proven) blind_misses_ = 0;
-          }
-        } else {
+        if (capped && skip_blind_ > 0) {
           --skip_blind_;
+        } else {
+          proven = Brake(m, &first, INFINITY, 0, record, law);
+          if (capped) {
+            blind_misses_ = proven ? 0 : blind_misses_ + 1;
+            skip_blind_ = proven ? 0 : (1L << std::min(blind_misses_, 4L)) - 1;
+          }
         }
-        if (!proven && ProofLaw() != Mode::kBrake) {
-          law = ProofLaw();
+        if (!proven && capped) {
+          law = Mode::kStop;
           proven = Brake(m, &first, INFINITY, 0, record, law);
         }
         if (!proven) return false;
