@@ -203,6 +203,24 @@ TEST(LookAhead, TheEndOfAPassIsLandedNoSlowerThanByThePapersPlanner) {
   EXPECT_LE(median(PlannerKind::kLookAhead), 1.005 * median(PlannerKind::kVpop));
 }
 
+// The end law plans with the least capacity the axes give the rest of the path, and the profile,
+// which knows the capacity along the way, hands it states that law cannot land by a hair: on the
+// four 5-axis surface samples the motion arrived at the end still braking, holding still needed a
+// rotary axis' jerk just over its limit, and the back-off replaced the landing period by period
+// (96, 85, 68 and 37 back-offs; half the head-table pass' planning). Braking up to 10 % harder
+// than the law's cap where that lands the state, they land without.
+TEST(LookAhead, FiveAxisPassesLandWithoutBackingOff) {
+  for (const char* name : {"surface_tilt10_head_table", "surface_tilt10_xyzac",
+                           "surface_tilt10_xyzbc_trt", "open_pocket_xyzac"}) {
+    SCOPED_TRACE(name);
+    auto job = io::LoadJob(test::Source(std::string("samples/jobs/") + name + ".toml"));
+    job.vpop.planner = PlannerKind::kLookAhead;
+    const io::RunResult run = io::RunJob(job);
+    EXPECT_LE(run.verify.worst_ratio, 1.0);
+    EXPECT_LE(run.vpop.back_offs, 2);
+  }
+}
+
 // Two places where the profile was more cautious than the motion it plans, at the samples' own
 // limits. The table-tilting XYZBC pass: a rotary axis' velocity decides half of the paper's
 // planner's steps, and the profile planned with 99 % of every limit was 1 % slower (3.813 s
@@ -225,7 +243,9 @@ TEST(LookAhead, WhereTheAxesAllowMoreThanTheProfileHeldItIsNoSlowerThanThePapers
 // was backed off from (925 back-offs against 96 planned whole, 3.06 M evaluations against 70 k);
 // on the trident it braked into the turns, and fine_wave streamed 16.7 s against 13.6 s. Braking
 // no faster than the greedy step's own caps, and a failed proof tried again later instead of
-// backed off from, the horizon costs neither motion time nor work.
+// backed off from, the horizon costs neither motion time nor work beyond its proofs: each is a
+// stop to rest on exact positions, a few hundred evaluations, about 6 per setpoint on the
+// head-table pass (whose landing, planned whole, needs only 3 per setpoint).
 TEST(LookAhead, UnderACommitHorizonItPlansAsFastAsWhole) {
   for (const char* name : {"surface_tilt10_head_table", "trident"}) {
     SCOPED_TRACE(name);
@@ -237,7 +257,7 @@ TEST(LookAhead, UnderACommitHorizonItPlansAsFastAsWhole) {
     EXPECT_LE(streamed.verify.worst_ratio, 1.0);
     EXPECT_LE(streamed.verify.motion_time_s, 1.001 * whole.verify.motion_time_s);
     EXPECT_LE(streamed.vpop.back_offs, whole.vpop.back_offs + 10);
-    EXPECT_LE(streamed.vpop.evaluations, 2 * whole.vpop.evaluations);
+    EXPECT_LE(streamed.vpop.evaluations, 2 * whole.vpop.evaluations + 10 * streamed.vpop.setpoints);
   }
 }
 

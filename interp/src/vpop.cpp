@@ -151,6 +151,10 @@ constexpr double kLawMargin = 1.0 - 1e-7;
 // widened by this fraction of that interval's width.
 constexpr double kJerkGive = 0.05;
 
+// The look-ahead planner's end law may brake up to this factor harder than its acceleration cap
+// where that cap falls just short of landing the state (LookAhead, ArriveBy).
+constexpr double kEndLawGive = 1.1;
+
 // Repairs of the look-ahead at one place (within a few periods' travel of the first) before the
 // planner backs off instead. Where two repairs (6 % off the limits there) do not get the exact
 // step through, the continuous model is wrong there, not short of margin: more repairs only slow
@@ -291,7 +295,7 @@ class Planner {
   // The backward limit of a slow point (nullptr when it could not be planned).
   const std::vector<std::pair<double, double>>* SlowCurve(const SlowPoint& point, const Step& near);
   double ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
-                  double feed) const;
+                  double feed, double give = 1.0) const;
   bool Solve(const History& h, const Box& box, double lo, double hi, double target, Step* out,
              LimiterId* by);
   // kGreedy: the planner's step. kBrake: the stop law of §2.3, which the back-off runs. kStop: the
@@ -585,9 +589,10 @@ Effective Planner::Available(const History& h, const Box& box, const Interval& t
 // `feed` (with zero acceleration) no later than arc length `at`: the end of the path (feed 0) or
 // a slow point. The law for the feed's excess over `feed` is the stop law, so the distance is the
 // stop distance of the excess plus `feed` times its periods. Returns a_hi when it already does, lo
-// when even lo does not.
+// when even lo does not, unless the law arrives with an acceleration cap up to `give` times
+// `acceleration`: then the largest a it arrives with under the least such cap.
 double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
-                         double feed) const {
+                         double feed, double give) const {
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
   const double release_jerk = jerk * kReleaseJerkFraction;
@@ -604,7 +609,24 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   if (!(f_hi > 0.0)) return a_hi;
   double lo = std::max({a0 - jerk * dt_, -acceleration, -v0 / dt_});
   double f_lo = reach(lo) - at;
-  if (f_lo > 0.0) return lo;  // cannot arrive in time even braking hardest: brake hardest
+  if (f_lo > 0.0) {
+    // Cannot arrive in time even braking hardest. Where a cap a little higher lands the state,
+    // brake with the least such cap; else brake hardest.
+    const double floor = std::max(a0 - jerk * dt_, -v0 / dt_);
+    const auto arrives = [&](double cap) {
+      const double a = std::max(floor, -cap);
+      const double v = v0 + a * dt_;
+      return s0 + v * dt_ + StopReach(v, a, release_jerk, cap * kReleaseJerkFraction, dt_, feed) <=
+             at;
+    };
+    double fails = acceleration, lands = std::min(give * acceleration, -floor);
+    if (!(lands > fails) || !arrives(lands)) return lo;
+    for (int k = 0; k < 40 && lands - fails > 1e-9 * lands; ++k) {
+      const double mid = 0.5 * (fails + lands);
+      (arrives(mid) ? lands : fails) = mid;
+    }
+    return ArriveBy(h, a_hi, jerk, lands, at, feed);
+  }
   // Braking to the point follows the stop law, so its next acceleration is nearly the answer:
   // bracket it tightly before the search (a few evaluations instead of dozens).
   const double guess = StopAcceleration(std::max(v0 - feed, 0.0), a0, release_jerk,
@@ -727,14 +749,24 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
     curve_target = std::min(curve_target, lo);
   }
   if (length_ && horizon >= *length_) {
-    double j_end = jerk, a_end = acceleration;
+    double j_end = jerk, a_end = acceleration, give = 1.0;
     if (profile_) {
       // The stop law with the least capacity the axes give the path before its end (the law
       // lands exactly at rest; the capacity at this point alone can be more than the end has).
       j_end = std::min(j_end, profile_->MinJerkCap(s0, *length_) * kLawMargin);
       a_end = std::min(a_end, profile_->MinAccelerationCap(s0, *length_) * kLawMargin);
+      // Those least caps, and the symmetric estimate of this point's, can fall short of a state
+      // the profile handed over by a hair, while the axes give more: the profile braked the
+      // head-table pass at -47 mm/s^2 into a law capped at -41.2. Braking only at the cap, the
+      // motion arrived at the end still braking, where holding still needs a rotary axis' jerk
+      // just over its limit, and the back-off replaced the landing period by period (96
+      // back-offs, half that pass' planning). So the law may brake a little harder than its cap
+      // where that lands it (the exact step holds the axes to their limits). Where the caps fall
+      // far short, as where the least ahead is a singularity's, the profile, which knows the
+      // capacity along the way, is the better guide.
+      give = kEndLawGive;
     }
-    const double a = ArriveBy(h, a_hi, j_end, a_end, *length_, 0.0);
+    const double a = ArriveBy(h, a_hi, j_end, a_end, *length_, 0.0, give);
     if (a < a_hi) a_hi = a, by = {Limiter::kEndLookAhead, -1};
   }
   const double target = s0 + (v0 + a_hi * dt_) * dt_;
