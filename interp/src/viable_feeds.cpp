@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "dtis/core/error.hpp"
@@ -10,6 +11,14 @@
 
 namespace dtis::interp {
 namespace {
+
+// 0.6^k, the feeds Clip probes below a state that is not admissible, computed once (std::pow per
+// probe was 1.5 % of a streamed 5-axis plan).
+const std::array<double, 13> kShrink = [] {
+  std::array<double, 13> p{};
+  for (int k = 0; k < 13; ++k) p[static_cast<std::size_t>(k)] = std::pow(0.6, k);
+  return p;
+}();
 
 // The period the stop law is reckoned in (the grid's time is continuous; the law's stops are
 // sums over periods of this length).
@@ -219,7 +228,7 @@ double ViableFeeds::Clip(const Node& n, double a, double v) const {
   if (Admissible(n, v, a, &lo, &hi)) return v;
   double good = -1.0, bad = v;
   for (int k = 1; k <= 12; ++k) {
-    const double x = v * std::pow(0.6, k);
+    const double x = v * kShrink[static_cast<std::size_t>(k)];
     if (Admissible(n, x, a, &lo, &hi)) {
       good = x;
       break;
