@@ -600,25 +600,21 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   // a: more braking, less reach. A stop to the end of the path that the law cannot bring to rest
   // reaches where its velocity turns (StopReach): counted short of the end instead, it let the
   // motion arrive there still braking, and back-offs replaced the approach period by period.
-  const auto reach = [&](double a) {
+  // (`cap`: the law's acceleration cap.)
+  const auto reach = [&](double a, double cap) {
     const double v = v0 + a * dt_;
-    return s0 + v * dt_ +
-           StopReach(v, a, release_jerk, acceleration * kReleaseJerkFraction, dt_, feed);
+    return s0 + v * dt_ + StopReach(v, a, release_jerk, cap * kReleaseJerkFraction, dt_, feed);
   };
-  double hi = a_hi, f_hi = reach(hi) - at;
+  double hi = a_hi, f_hi = reach(hi, acceleration) - at;
   if (!(f_hi > 0.0)) return a_hi;
-  double lo = std::max({a0 - jerk * dt_, -acceleration, -v0 / dt_});
-  double f_lo = reach(lo) - at;
+  // The hardest braking the jerk allows without the feed turning back, then the cap.
+  const double floor = std::max(a0 - jerk * dt_, -v0 / dt_);
+  double lo = std::max(floor, -acceleration);
+  double f_lo = reach(lo, acceleration) - at;
   if (f_lo > 0.0) {
     // Cannot arrive in time even braking hardest. Where a cap a little higher lands the state,
     // brake with the least such cap; else brake hardest.
-    const double floor = std::max(a0 - jerk * dt_, -v0 / dt_);
-    const auto arrives = [&](double cap) {
-      const double a = std::max(floor, -cap);
-      const double v = v0 + a * dt_;
-      return s0 + v * dt_ + StopReach(v, a, release_jerk, cap * kReleaseJerkFraction, dt_, feed) <=
-             at;
-    };
+    const auto arrives = [&](double cap) { return reach(std::max(floor, -cap), cap) <= at; };
     double fails = acceleration, lands = std::min(give * acceleration, -floor);
     if (!(lands > fails) || !arrives(lands)) return lo;
     for (int k = 0; k < 40 && lands - fails > 1e-9 * lands; ++k) {
@@ -634,7 +630,7 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   const double delta = 1e-7 * (std::abs(guess) + jerk * dt_);
   for (const double g : {guess, guess - delta, guess + delta}) {
     if (!(g > lo && g < hi)) continue;
-    const double f_g = reach(g) - at;
+    const double f_g = reach(g, acceleration) - at;
     if (f_g <= 0.0) {
       lo = g, f_lo = f_g;
     } else {
@@ -651,7 +647,7 @@ double Planner::ArriveBy(const History& h, double a_hi, double jerk, double acce
   for (int k = 0; k < 60 && hi - lo > tight(); ++k) {
     double mid = std::isfinite(f_lo) ? lo + (hi - lo) * (-f_lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
     if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
-    const double f_mid = reach(mid) - at;
+    const double f_mid = reach(mid, acceleration) - at;
     if (f_mid <= 0.0) {
       lo = mid, f_lo = f_mid;
       if (side == -1) f_hi *= 0.5;
