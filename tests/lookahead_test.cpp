@@ -228,7 +228,7 @@ TEST(LookAhead, FiveAxisPassesLandWithoutBackingOff) {
 // program: each slow point (Eq. 8 over its corner) capped the feed of its grid point although
 // the grid point saw the corner itself and allowed 1.1 to 2.1 times that feed, and the profile
 // was 2 % slower (15.291 s against 14.988 s); capping only where the grid point allows more than
-// three times the slow point's feed, it is faster (14.935 s).
+// three times the slow point's feed, it is faster (14.936 s).
 TEST(LookAhead, WhereTheAxesAllowMoreThanTheProfileHeldItIsNoSlowerThanThePapersPlanner) {
   for (const char* name : {"surface_tilt10_xyzbc_trt", "five_axis_g1"}) {
     SCOPED_TRACE(name);
