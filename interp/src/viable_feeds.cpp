@@ -54,8 +54,9 @@ constexpr double kUnseenCorner = 3.0;
 // the jerk the axes give at the last (no more than its cap). A release longer than a few dozen
 // grid points is one along fine blocks or at low feed, where that jerk changes little: followed
 // over 64 grid points, the walks were a third of the fine-block wave's planning and a sixth of
-// the trident's, with the samples' motion times within their spread (bench/spread.py medians:
-// trident 2.359 s against 2.342 s now, the others within 0.15 %).
+// the trident's, for motion times within their spread (bench/spread.py medians over 17 draws,
+// 64 against 16: the trident 2.359 against 2.342 s, the other samples within 0.15 %; cut at 8
+// or 12 grid points, the trident was slower).
 constexpr int kMaxReleaseNodes = 16;
 
 // The time t > 0 in which a motion starting with feed v, acceleration a and constant jerk j
