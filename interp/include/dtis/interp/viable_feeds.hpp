@@ -144,6 +144,10 @@ class ViableFeeds {
   // node n in the state (v, a) (the jerk part of Admissible), or false when they do not meet.
   bool JerkInterval(const Node& n, const LookAheadLimits& l, double m, double v, double a,
                     double* lo, double* hi) const;
+  // How far the state (v, a) at node n is beyond the axes' acceleration and jerk limits: the
+  // largest excess of one over its limit, relative to it. Below the velocity caps (and with a
+  // within its own), (v, a) is admissible exactly where this is <= 0.
+  double Excess(const Node& n, double v, double a) const;
   // The largest v' <= v with (v', a) admissible at `n`; -1 if none.
   double Clip(const Node& n, double a, double v) const;
   // v_max(a) of a boundary, -1 outside it: the chords between its points (they read a concave
