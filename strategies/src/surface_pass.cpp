@@ -111,10 +111,8 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
       break;
     }
     case PassConstraint::Kind::kGuide: {
-      const double t = ClosestOnGuide(*constraint_.guide, d.p.x(), d.p.y(), guide_hint);
-      out->guide_t = t;
       Eigen::Vector3d gd[3];
-      constraint_.guide->Derivatives(t, 2, gd);
+      out->guide_t = ClosestOnGuide(*constraint_.guide, d.p.x(), d.p.y(), guide_hint, gd);
       const Eigen::Vector2d tangent(gd[1].x(), gd[1].y());
       if (!(tangent.norm() > 0.0)) return EvalStatus::kFeedUndefined;
       const Eigen::Vector2d left = Eigen::Vector2d(-tangent.y(), tangent.x()).normalized();
@@ -312,23 +310,27 @@ ContactPoint PassEvaluator::LastInside(const ContactPoint& inside, double sign, 
   return best;
 }
 
-double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint) {
+double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint,
+                      Eigen::Vector3d at[3]) {
   const double t0 = guide.FirstParameter(), t1 = guide.LastParameter();
   const Eigen::Vector2d p(x, y);
   const auto dist2 = [&](double t) {
     const Eigen::Vector3d q = guide.Point(t);
     return (Eigen::Vector2d(q.x(), q.y()) - p).squaredNorm();
   };
+  Eigen::Vector3d d[3];
+  double d_at = std::numeric_limits<double>::quiet_NaN();  // where d was evaluated
   const auto newton = [&](double t) {
     for (int it = 0; it < 30; ++it) {
-      Eigen::Vector3d d[3];
       guide.Derivatives(t, 2, d);
+      d_at = t;
       const Eigen::Vector2d r(d[0].x() - x, d[0].y() - y), g1(d[1].x(), d[1].y()),
           g2(d[2].x(), d[2].y());
       const double f = r.dot(g1), fp = g1.squaredNorm() + r.dot(g2);
       if (!(fp > 0.0)) break;
       const double next = std::clamp(t - f / fp, t0, t1);
-      if (std::abs(next - t) <= 1e-15 * (1.0 + std::abs(t))) return next;
+      // Within 1e-15 of the root: t is the answer (its derivatives are at hand).
+      if (std::abs(next - t) <= 1e-15 * (1.0 + std::abs(t))) return t;
       t = next;
     }
     return t;
@@ -345,6 +347,10 @@ double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, d
       if (dd < d_best) d_best = dd, t_best = t;
     }
     best = newton(t_best);
+  }
+  if (at != nullptr) {
+    if (!(d_at == best)) guide.Derivatives(best, 2, d);
+    std::copy(d, d + 3, at);
   }
   return best;
 }

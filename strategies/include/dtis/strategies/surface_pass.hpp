@@ -148,8 +148,9 @@ class PassEvaluator {
 };
 
 // The parameter of the point of `guide` closest to (x, y) in XY, by Newton from `hint` (NaN: from
-// a coarse scan of the curve).
-double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint);
+// a coarse scan of the curve). With `at`, also the guide's point and first two derivatives there.
+double ClosestOnGuide(const geometry::BSplineCurve& guide, double x, double y, double hint,
+                      Eigen::Vector3d at[3] = nullptr);
 
 // The arc length between two points with unit tangents ta, tb, `chord` apart: exact for a circular
 // arc (c (theta/2) / sin(theta/2), theta the angle of the tangents), fifth order otherwise.
