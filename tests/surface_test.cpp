@@ -1177,6 +1177,27 @@ std::shared_ptr<const geometry::BSplineCurve> WavyGuide() {
       3, {0, 0, 0, 0, 1, 1, 1, 1}, {{30, -5, 0}, {25, 20, 0}, {35, 40, 0}, {30, 65, 0}}, {}});
 }
 
+// The closest point of a guide: the foot of the perpendicular from the point in XY, the same
+// from a scan and from a hint nearby, with the guide's own derivatives there handed back.
+TEST(SurfacePass, TheClosestPointOfAGuideIsTheFootOfThePerpendicular) {
+  const auto guide = WavyGuide();
+  for (const Eigen::Vector2d p :
+       {Eigen::Vector2d(20.0, 10.0), Eigen::Vector2d(36.0, 30.0), Eigen::Vector2d(31.0, 60.0)}) {
+    SCOPED_TRACE(fmt::format("({}, {})", p.x(), p.y()));
+    Eigen::Vector3d at[3];
+    const double t = strategies::ClosestOnGuide(*guide, p.x(), p.y(), NAN, at);
+    Eigen::Vector3d d[3];
+    guide->Derivatives(t, 2, d);
+    for (int k = 0; k < 3; ++k) EXPECT_LT((at[k] - d[k]).norm(), 1e-12 * (1.0 + d[k].norm()));
+    const Eigen::Vector2d r(d[0].x() - p.x(), d[0].y() - p.y()), tangent(d[1].x(), d[1].y());
+    EXPECT_LT(std::abs(r.dot(tangent.normalized())), 1e-9);
+    const double hinted = strategies::ClosestOnGuide(*guide, p.x(), p.y(), t + 0.05, at);
+    EXPECT_NEAR(hinted, t, 1e-12);
+    guide->Derivatives(hinted, 2, d);
+    EXPECT_LT((at[0] - d[0]).norm(), 1e-12);
+  }
+}
+
 TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   // What holds today: a ball R3 builds every pass of plane_cl, uv and leading_line, 3-axis and
   // tilted 10 deg, never under the face (3-axis passes planned and verified); a flat bottom (flat
