@@ -286,20 +286,26 @@ double ViableFeeds::Clip(const Node& n, double a, double v) const {
     if (g > 0.0) v = std::min(v, limits_.v[i] * n.margin / g);
   }
   if (Admissible(n, v, a, &lo, &hi)) return v;
-  double good = -1.0, bad = v;
+  if (std::abs(a) > limits_.tangential_acceleration * n.margin) return -1.0;
+  if (!(v > 0.0)) return Admissible(n, 0.0, a, &lo, &hi) ? 0.0 : -1.0;
+  // Between 0 and v (within the velocity caps, a within its own) the excess says what
+  // Admissible would: <= 0 where admissible.
+  const auto slack = [&](double x) { return -Excess(n, x, a); };
+  double good = -1.0, bad = v, f_good = 0.0, f_bad = -1.0;
   for (int k = 1; k <= 12; ++k) {
     const double x = v * kShrink[static_cast<std::size_t>(k)];
-    if (Admissible(n, x, a, &lo, &hi)) {
-      good = x;
+    const double f = slack(x);
+    if (f >= 0.0) {
+      good = x, f_good = f;
       break;
     }
-    bad = x;
+    bad = x, f_bad = f;
   }
-  if (good < 0.0) return Admissible(n, 0.0, a, &lo, &hi) ? 0.0 : -1.0;
+  if (good < 0.0) return slack(0.0) >= 0.0 ? 0.0 : -1.0;
   // The excess is smooth between the limits it switches among: where one limit binds, regula
   // falsi lands within 1e-9 in a few steps where bisection took 24.
-  const auto slack = [&](double x) { return -Excess(n, x, a); };
-  return LargestWithin(good, slack(good), bad, slack(bad), slack);
+  if (bad == v) f_bad = slack(v);  // the first step down was admissible
+  return LargestWithin(good, f_good, bad, f_bad, slack);
 }
 
 double ViableFeeds::Boundary(const std::vector<Point>& b, double a) {

@@ -1001,9 +1001,8 @@ double Planner::ProfileCap(const History& h, double lo, double hi, double target
   if (!found) {
     double best = xs[static_cast<std::size_t>(k_best)],
            f_best = fs[static_cast<std::size_t>(k_best)];
-    for (const int side : {-1, 1}) {
-      // The half step below the walked state `above`.
-      const int above = side < 0 ? k_best - 1 : k_best;
+    // The half steps below the walked state before the best one and below the best one.
+    for (const int above : {k_best - 1, k_best}) {
       if (above < 0 || above + 1 > walked) continue;
       const double x = at(above + 0.5);
       const double f = slack(x);
