@@ -431,7 +431,13 @@ double ViableFeeds::SlackTowards(const Node& n, double s, const Node& next, doub
   }
   const double t = h / std::max(v, 1e-9);
   double best = -INFINITY;
-  for (const double j : {std::clamp((peak_a - a) / t, lo, hi), lo, hi}) {
+  // The jerk that aims at the peak, then the extreme ones (each once: the aim is often one of
+  // them).
+  const double aim = std::clamp((peak_a - a) / t, lo, hi);
+  const double jerks[3] = {aim, lo, hi};
+  for (int k = 0; k < 3; ++k) {
+    const double j = jerks[k];
+    if ((k > 0 && j == aim) || (k == 2 && j == lo)) continue;
     double v2, a2;
     if (!Forward(v, a, j, h, &v2, &a2)) {
       // Comes to rest before the next grid point: viable if the stop law gets there at rest.
