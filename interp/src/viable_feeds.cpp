@@ -807,6 +807,11 @@ double ViableFeeds::Spacing(const Node& n, double end) const {
   d1 = std::sqrt(d1), d2 = std::sqrt(d2), d3 = std::sqrt(d3);
   if (d2 > 0.0) h = std::min(h, 0.05 * d1 / d2);
   if (d3 > 0.0) h = std::min(h, 0.075 * std::sqrt(d1 / d3));
+  // Where an axis turns while others set the tangential jerk (LookAheadOptions::axis_turn).
+  for (int i = 0; i < n_axes_; ++i) {
+    const double turn = std::abs(n.d2[i]) * n.jerk_cap;
+    if (turn > 0.0) h = std::min(h, options_.axis_turn * limits_.j[i] / turn);
+  }
   return std::max(h, options_.min_spacing_mm);
 }
 
