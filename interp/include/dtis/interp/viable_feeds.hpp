@@ -56,15 +56,15 @@ struct LookAheadOptions {
   double max_spacing_mm = 0.5;
   double min_spacing_mm = 1e-3;
   // A grid point checks each axis' jerk with that axis' q_s there, and a tangential jerk up to
-  // the largest the axes allow (its jerk cap, set by the axis the path moves most, scaled by its
-  // limit). Over a stretch h the axis' q_s moves by |q_ss| h, and with it its jerk by up to
-  // |q_ss| h times that cap: the spacing keeps this within this fraction of the axis' own jerk
-  // limit. It binds where an axis turns while another sets the tangential jerk: an axis
-  // reversing, or X and Y curving on a path mostly along Z, whose jerk limit is ten times theirs
-  // on the Mikron. There, nodes 0.2 mm apart held states the exact step then refused period
-  // after period. Measured (bench/spread.py medians over 9 draws, against no such bound): the
-  // leading-line job -0.25 %, plane_cl -0.17 %, five_axis_g1 -0.18 %, fine_wave -0.07 %, the
-  // other samples unchanged to the byte; 0.1 gave less.
+  // the largest the axes allow there (its jerk cap, which the axis the path moves most sets).
+  // Over a stretch h the axis' q_s moves by |q_ss| h, and its jerk with it by up to |q_ss| h
+  // times that cap: the spacing keeps this within this fraction of the axis' own jerk limit. It
+  // binds where an axis turns while another sets the tangential jerk: an axis reversing, or X and
+  // Y curving on a path mostly along Z, whose jerk limit is ten times theirs on the Mikron. There,
+  // grid points 0.2 mm apart held states the exact step then refused period after period.
+  // Measured against no such bound (bench/spread.py, medians over 8 draws): the leading-line job
+  // -0.30 %, plane_cl -0.16 %, five_axis_g1 -0.07 %, fine_wave +0.07 % (within its spread), the
+  // other samples byte-identical; 0.1 gained less.
   double axis_turn = 0.2;
   // Acceleration resolution of the boundary, as a fraction of the largest tangential acceleration
   // the axes allow at the grid point.
