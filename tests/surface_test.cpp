@@ -1181,7 +1181,7 @@ std::shared_ptr<const geometry::BSplineCurve> WavyGuide() {
 // from a scan and from a hint nearby, with the guide's own derivatives there handed back.
 TEST(SurfacePass, TheClosestPointOfAGuideIsTheFootOfThePerpendicular) {
   const auto guide = WavyGuide();
-  for (const Eigen::Vector2d p :
+  for (const Eigen::Vector2d& p :
        {Eigen::Vector2d(20.0, 10.0), Eigen::Vector2d(36.0, 30.0), Eigen::Vector2d(31.0, 60.0)}) {
     SCOPED_TRACE(fmt::format("({}, {})", p.x(), p.y()));
     Eigen::Vector3d at[3];
