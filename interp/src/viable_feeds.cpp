@@ -50,6 +50,14 @@ constexpr double kExtendWindows = 2.0;
 // point's feed, and without the cap the exact step is refused there thousands of times.
 constexpr double kUnseenCorner = 3.0;
 
+// Past the ends of a boundary, Bisect looks for a viable feed down to this many steps of 0.6 below
+// the top (1.7 % of it; 16 steps elsewhere). These looks mostly find none, and each step that
+// finds none is a slack evaluation: 17 518 of 18 226 looks failed on the fine-block wave, 716 of
+// 718 on the line. With 8 steps every sample plans the same setpoints (6 changed one) and the
+// trident streams with 4 % fewer instructions, the fine-block wave 2.5 %, the 5-axis G1 program
+// 2 %; a point below 1.7 % of the top would only have widened the boundary's acceleration range.
+constexpr int kEndDescent = 8;
+
 // Grid points a release of the deceleration is followed over; past them it is taken to go on at
 // the jerk the axes give at the last (no more than its cap). A release longer than a few dozen
 // grid points is one along fine blocks or at low feed, where that jerk changes little: followed
@@ -466,7 +474,7 @@ double ViableFeeds::Slack(double s, double v, double a) const {
   return SlackTowards(here, s, next, v, a);
 }
 
-double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
+double ViableFeeds::Bisect(const Node& n, const Node& next, double a, int descent) const {
   const double top = Clip(n, a, n.feed_cap);
   if (top < 0.0) return -1.0;
   // A braking state must keep the feed its release takes away: if even the top cannot, none can
@@ -487,7 +495,7 @@ double ViableFeeds::Bisect(const Node& n, const Node& next, double a) const {
       bad = guess, f_bad = f;
     }
   }
-  for (int k = 1; k <= 16 && good < 0.0 && bad > 0.0; ++k) {
+  for (int k = 1; k <= descent && good < 0.0 && bad > 0.0; ++k) {
     const double x = bad * 0.6;
     const double f = slack(x);
     if (f >= 0.0) {
@@ -617,7 +625,7 @@ void ViableFeeds::Propagate(Node* n, const Node& next) const {
       const Point& end = side > 0 ? merged.back() : merged.front();
       const double a = end.a + side * resolution;
       if (std::abs(a) > a_range) break;
-      const double v = Bisect(*n, next, a);
+      const double v = Bisect(*n, next, a, kEndDescent);
       if (v < 0.0) break;
       if (side > 0) {
         merged.push_back({a, v});

@@ -185,8 +185,9 @@ class ViableFeeds {
   std::vector<Point> LawBoundary(const Node& n) const;
   // The boundary of `n` from that of `next`.
   void Propagate(Node* n, const Node& next) const;
-  // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a).
-  double Bisect(const Node& n, const Node& next, double a) const;
+  // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a), its bracket
+  // looked for `descent` steps of 0.6 down from the largest admissible feed.
+  double Bisect(const Node& n, const Node& next, double a, int descent = 16) const;
 
   // The first node at or after arc length s.
   std::deque<Node>::const_iterator FirstAtOrAfter(double s) const;
