@@ -31,6 +31,7 @@ for job in "$root"/samples/jobs/*.toml; do
     echo "sample $name: not in docs/samples.md" >&2
     exit 1
   }
+  vpop_motion=""
   for planner in vpop lookahead; do
     limit=$(documented "$name" "$planner")
     [ -n "$limit" ] || continue
@@ -43,7 +44,15 @@ for job in "$root"/samples/jobs/*.toml; do
       exit 1
     }
     echo "sample $name, $planner: ok, $motion s (docs: $limit s)"
+    [ "$planner" = vpop ] && vpop_motion=$motion
   done
+  # The look-ahead planner is never more than 0.5 % slower than the paper's.
+  if [ -n "$vpop_motion" ] && [ -n "$(documented "$name" lookahead)" ]; then
+    awk -v l="$motion" -v v="$vpop_motion" 'BEGIN { exit !(l <= 1.005 * v) }' || {
+      echo "sample $name: lookahead $motion s is more than 0.5 % over vpop's $vpop_motion s" >&2
+      exit 1
+    }
+  fi
 done
 
 # A surface job's output does not depend on the number of threads planning its passes.
