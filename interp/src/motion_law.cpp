@@ -64,8 +64,9 @@ double StopChoice(double a, double step, double acceleration, double released) {
 
 }  // namespace
 
-double StopAcceleration(double v, double a, double jerk, double acceleration, double dt) {
-  return StopChoice(a, jerk * dt, acceleration, Release(jerk * kReleaseJerkFraction, dt)(v));
+double StopAcceleration(double v, double a, double jerk, double acceleration, double dt,
+                        double release_fraction) {
+  return StopChoice(a, jerk * dt, acceleration, Release(jerk * release_fraction, dt)(v));
 }
 
 namespace {

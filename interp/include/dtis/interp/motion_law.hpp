@@ -24,8 +24,11 @@ double ReleaseGain(double a, double jerk, double dt);
 double MaxAccelerationUnderCap(double v, double cap, double jerk, double dt);
 
 // The next acceleration of the fastest stop to rest from (v >= 0, a): brake at -jerk down to
-// -acceleration, and release (at kReleaseJerkFraction of jerk) so that v and a reach zero together.
-double StopAcceleration(double v, double a, double jerk, double acceleration, double dt);
+// -acceleration, and release (planned at `release_fraction` of jerk) so that v and a reach zero
+// together. A period may still change a by the whole jerk: a law that fell behind its release
+// (the exact step could not follow it for a period) catches up by the difference.
+double StopAcceleration(double v, double a, double jerk, double acceleration, double dt,
+                        double release_fraction = kReleaseJerkFraction);
 
 // Distance travelled by StopAcceleration from (v, a) until rest, and the number of periods.
 // `reverses` is set when the state is braked too hard to come to rest without moving backwards
