@@ -301,7 +301,10 @@ class Planner {
   bool MakeBox(const History& h, Box* box) const;
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAxes, 1> Direction(const History& h);
   Effective Available(const History& h, const Box& box, const Interval& t);
-  std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e);
+  // `a_cap`: the caller takes the lesser of the laws' next acceleration and a_cap, so the end law
+  // is searched only where a_cap does not land (one stop distance where it does).
+  std::pair<double, LimiterId> LookAhead(const History& h, const Effective& e,
+                                         double a_cap = INFINITY);
   // The backward limit of a slow point (nullptr when it could not be planned).
   const std::vector<std::pair<double, double>>* SlowCurve(const SlowPoint& point, const Step& near);
   double ArriveBy(const History& h, double a_hi, double jerk, double acceleration, double at,
@@ -698,7 +701,8 @@ const std::vector<std::pair<double, double>>* Planner::SlowCurve(const SlowPoint
 
 // The soft upper bound of the look-ahead laws: approach the feed cap without overshoot, pass the
 // path's slow points no faster than their feed, and stop at the end of the path.
-std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e) {
+std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effective& e,
+                                                double a_cap) {
   const double s0 = h.p0->s, v0 = (s0 - h.p1->s) / dt_;
   const double a0 = (v0 - (h.p1->s - h.p2->s) / dt_) / dt_;
   const double jerk = e.jerk * kLawMargin, acceleration = e.acceleration * kLawMargin;
@@ -772,8 +776,9 @@ std::pair<double, LimiterId> Planner::LookAhead(const History& h, const Effectiv
       // capacity along the way, is the better guide.
       give = kEndLawGive;
     }
-    const double a = ArriveBy(h, a_hi, j_end, a_end, *length_, 0.0, give);
-    if (a < a_hi) a_hi = a, by = {Limiter::kEndLookAhead, -1};
+    const double top = std::min(a_hi, a_cap);
+    const double a = ArriveBy(h, top, j_end, a_end, *length_, 0.0, give);
+    if (a < top) a_hi = a, by = {Limiter::kEndLookAhead, -1};
   }
   const double target = s0 + (v0 + a_hi * dt_) * dt_;
   if (curve_target < target) return {curve_target, {Limiter::kSlowPointLookAhead, -1}};
@@ -1108,7 +1113,7 @@ bool Planner::Produce(const History& h, Mode mode, Step* out) {
       // proof fails where the greedy step, which slows for them, gets through (on the tilted
       // head-table pass 830 of 834 proofs under a 256-period horizon failed at the path's end).
       // No faster than the greedy step's own caps, then: the end law, the viable feeds ahead.
-      const auto [soft, soft_by] = LookAhead(h, e);
+      const auto [soft, soft_by] = LookAhead(h, e, a);
       target = std::max(std::min(target, soft), t.lo);
       const Limiter binding = soft <= target ? soft_by.kind : Limiter::kBackOff;
       if (profile_ && !AtRest(h) && !Landing(h, binding)) {
