@@ -675,8 +675,21 @@ std::vector<ViableFeeds::Point> ViableFeeds::LawBoundary(const Node& n) const {
   // least jerk and acceleration caps of the grid points before the end).
   const double jerk = MinJerkCap(n.s, End()), acceleration = MinAccelerationCap(n.s, End());
   const double zone = options_.law_zone_mm;
+  // The law from (v, a), with the jerk the exact step's end law plans with there: the axes' jerk
+  // interval around the state, symmetric and at least a quarter of the cap (vpop.cpp, Available),
+  // which is less than the cap where the path bends, as the terms q_sss v^3 + 3 q_ss v a take
+  // part of an axis' jerk. Planned with the cap alone, the boundary handed the leading-line
+  // passes states at the stretch's entry that the law, braking at the jerk actually left, could
+  // not land: it reached the end still braking, and the back-off replaced the approach period by
+  // period (125 of that job's 167 back-offs).
+  const auto run = [&](double v, double a) -> StopDistance {
+    double lo, hi;
+    if (!JerkInterval(n, full_, n.margin, std::max(v, 0.0), a, &lo, &hi)) return {0.0, 0, true};
+    const double j = std::min(jerk, std::max(std::min(-lo, hi), 0.25 * n.jerk_cap));
+    return StopDistanceFrom(v, a, j, acceleration, kLawPeriod);
+  };
   const auto lands = [&](double v, double a) {
-    const StopDistance d = StopDistanceFrom(v, a, jerk, acceleration, kLawPeriod);
+    const StopDistance d = run(v, a);
     return !d.reverses && d.distance <= zone;
   };
   std::vector<Point> out;
@@ -690,6 +703,17 @@ std::vector<ViableFeeds::Point> ViableFeeds::LawBoundary(const Node& n) const {
     // still stops within the stretch.
     double good = a < 0.0 ? ReleaseGain(-a, jerk, kLawPeriod) * (1.0 + 1e-6) + 1e-9 : 0.0;
     double bad = n.feed_cap;
+    if (a < 0.0 && run(good, a).reverses) {
+      // Where the axes leave less jerk than the cap, the release needs a higher feed (dropping
+      // the point instead cut the deepest decelerations off every plane_cl pass' boundary).
+      double low = good, high = bad;
+      if (run(high, a).reverses) continue;
+      for (int it = 0; it < 60 && high - low > 1e-9 * high; ++it) {
+        const double mid = 0.5 * (low + high);
+        (run(mid, a).reverses ? low : high) = mid;
+      }
+      good = high;
+    }
     if (!lands(good, a)) continue;
     if (lands(bad, a)) {
       out.push_back({a, bad});
