@@ -44,7 +44,7 @@ for job in "$root"/samples/jobs/*.toml; do
       exit 1
     }
     echo "sample $name, $planner: ok, $motion s (docs: $limit s)"
-    [ "$planner" = vpop ] && vpop_motion=$motion
+    if [ "$planner" = vpop ]; then vpop_motion=$motion; fi
   done
   # The look-ahead planner is never more than 0.5 % slower than the paper's.
   if [ -n "$vpop_motion" ] && [ -n "$(documented "$name" lookahead)" ]; then
