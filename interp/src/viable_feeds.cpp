@@ -67,6 +67,11 @@ constexpr int kEndDescent = 8;
 // or 12 grid points, the trident was slower).
 constexpr int kMaxReleaseNodes = 16;
 
+// Grid points per JerkBlock: a release's bound that follows dozens of grid points (a release at
+// a high feed covers millimetres) reads one bound per block where none of its points lowers the
+// least jerk, and the same least jerk comes out.
+constexpr long kJerkBlock = 8;
+
 // The time t > 0 in which a motion starting with feed v, acceleration a and constant jerk j
 // covers the distance h (v t + a t^2 / 2 + j t^3 / 6 = h, the first root), or NaN when it comes to
 // rest first. Newton from the root's series in h, or from the least time any one term alone needs.
@@ -220,6 +225,16 @@ ViableFeeds::ViableFeeds(const PathSource& path, const Machine& machine,
 
 void ViableFeeds::Append(Node node) {
   node.id = nodes_.empty() ? 0 : nodes_.back().id + 1;
+  if (node.id % kJerkBlock == 0) {
+    blocks_.push_back(
+        {node.id, 0, node.margin, node.d1.cwiseAbs(), node.d2.cwiseAbs(), node.d3.cwiseAbs()});
+  }
+  JerkBlock& b = blocks_.back();
+  ++b.count;
+  b.margin = std::min(b.margin, node.margin);
+  b.d1 = b.d1.cwiseMax(node.d1.cwiseAbs());
+  b.d2 = b.d2.cwiseMax(node.d2.cwiseAbs());
+  b.d3 = b.d3.cwiseMax(node.d3.cwiseAbs());
   nodes_.push_back(std::move(node));
 }
 
@@ -348,6 +363,19 @@ double ViableFeeds::Curved(const std::vector<Point>& b, std::size_t i, double a)
          (-2.0 * t3 + 3.0 * t2) * r.v + (t3 - t2) * m1;
 }
 
+double ViableFeeds::LeastJerk(const JerkBlock& b, double v, double deceleration) const {
+  // LeastJerk's arithmetic on the block's worst values: rounding is monotone, so this is at most
+  // LeastJerk of each of its nodes in floating point too.
+  double least = limits_.tangential_jerk * b.margin;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double curvature = v * (b.d3[i] * v * v + 3.0 * b.d2[i] * deceleration);
+    const double room = limits_.j[i] * b.margin - curvature;
+    if (room < 0.0) return 0.0;
+    if (b.d1[i] > 1e-12) least = std::min(least, room / b.d1[i]);
+  }
+  return least;
+}
+
 double ViableFeeds::LeastJerk(const Node& n, double v, double deceleration) const {
   const double m = n.margin;
   double least = limits_.tangential_jerk * m;
@@ -374,10 +402,22 @@ double ViableFeeds::ReleaseFeed(const Node& n, double s, double v, double a) con
     const double need = a * a / (2.0 * v);
     double least = INFINITY;
     auto q = it;
-    for (; q != nodes_.end(); ++q) {
+    while (q != nodes_.end()) {
+      if (q->id % kJerkBlock == 0) {
+        // A whole block none of whose points can lower `least`: the walk would only look for
+        // the end of the release in it.
+        const JerkBlock& b =
+            blocks_[static_cast<std::size_t>((q->id - blocks_.front().first) / kJerkBlock)];
+        if (b.count == kJerkBlock && LeastJerk(b, v, -a) >= least) {
+          if ((q + (kJerkBlock - 1))->s >= s + v * -a / least) break;
+          q += kJerkBlock;
+          continue;
+        }
+      }
       least = std::min(least, LeastJerk(*q, v, -a));
       if (least < need) break;
       if (q->s >= s + v * -a / least) break;
+      ++q;
     }
     if (least >= need) return v - a * a / (2.0 * least);
   }
@@ -951,6 +991,8 @@ void ViableFeeds::Repair(double s, double reach) {
     Node& n = nodes_[k];
     if (std::abs(n.s - s) > reach) continue;
     n.margin = std::max(kMinRepairMargin, n.margin * kRepairFactor);
+    JerkBlock& b = blocks_[static_cast<std::size_t>((n.id - blocks_.front().first) / kJerkBlock)];
+    b.margin = std::min(b.margin, n.margin);
     n.jerk_cap = std::min(n.jerk_cap, n.jerk_cap * kRepairFactor);
     n.acceleration_cap = std::min(n.acceleration_cap, n.acceleration_cap * kRepairFactor);
     last = k;
@@ -1023,6 +1065,7 @@ void ViableFeeds::Advance(double s, const PathState& state, const AxisVector& q,
   }
   // Drop the grid behind where the planner may still step back to.
   while (nodes_.size() > 2 && nodes_[1].s <= keep) nodes_.pop_front();
+  while (blocks_.front().first + kJerkBlock <= nodes_.front().id) blocks_.pop_front();
   const bool at_end = length_ && nodes_.back().s >= *length_;
   if (!at_end && nodes_.back().s < s + 0.5 * window_) Extend(s + kExtendWindows * window_);
 }

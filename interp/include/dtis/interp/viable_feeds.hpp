@@ -144,8 +144,19 @@ class ViableFeeds {
     std::vector<Point> boundary;    // v_max(a), sorted by a
     long id = 0;                    // position in the grid since the first node
   };
+  // What LeastJerk reads of kJerkBlock consecutive nodes, each taken at its worst: their least
+  // margin and each axis' largest |q_s|, |q_ss|, |q_sss|. LeastJerk of it is at most that of any
+  // of its nodes, so a release's bound skips the block where that is no less than the least jerk
+  // it has found.
+  struct JerkBlock {
+    long first = 0;  // id of its first node
+    int count = 0;   // nodes appended to it so far
+    double margin = 1.0;
+    AxisVector d1, d2, d3;
+  };
   // Adds a node at the end of the grid.
   void Append(Node node);
+  double LeastJerk(const JerkBlock& b, double v, double deceleration) const;
 
   // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false; planned
   // with the fraction m of the limits instead of the node's margin.
@@ -210,6 +221,7 @@ class ViableFeeds {
   double window_ = 0.0;  // mm ahead of the planner
   std::optional<double> length_;
   std::deque<Node> nodes_;
+  std::deque<JerkBlock> blocks_;  // over nodes_, from the block of its first node on
   long grid_points_ = 0;
 };
 
