@@ -378,20 +378,10 @@ double ViableFeeds::Curved(const std::vector<Point>& b, std::size_t i, double a)
          (-2.0 * t3 + 3.0 * t2) * r.v + (t3 - t2) * m1;
 }
 
-double ViableFeeds::LeastJerk(const JerkBlock& b, double v, double deceleration) const {
-  // LeastJerk's arithmetic on the block's worst values: rounding is monotone, so this is at most
-  // LeastJerk of each of its nodes in floating point too.
-  double least = limits_.tangential_jerk * b.margin;
-  for (int i = 0; i < n_axes_; ++i) {
-    const double curvature = v * (b.d3[i] * v * v + 3.0 * b.d2[i] * deceleration);
-    const double room = limits_.j[i] * b.margin - curvature;
-    if (room < 0.0) return 0.0;
-    if (b.d1[i] > 1e-12) least = std::min(least, room / b.d1[i]);
-  }
-  return least;
-}
-
-double ViableFeeds::LeastJerk(const Node& n, double v, double deceleration) const {
+template <typename Points>
+double ViableFeeds::LeastJerk(const Points& n, double v, double deceleration) const {
+  // On a JerkBlock the values are already each node's worst (|.| changes nothing) and rounding is
+  // monotone, so the block's least jerk is at most each node's in floating point too.
   const double m = n.margin;
   double least = limits_.tangential_jerk * m;
   for (int i = 0; i < n_axes_; ++i) {
@@ -403,6 +393,14 @@ double ViableFeeds::LeastJerk(const Node& n, double v, double deceleration) cons
     if (g > 1e-12) least = std::min(least, room / g);
   }
   return least;
+}
+
+ViableFeeds::JerkBlock& ViableFeeds::BlockOf(long id) {
+  return blocks_[static_cast<std::size_t>((id - blocks_.front().first) / kJerkBlock)];
+}
+
+const ViableFeeds::JerkBlock& ViableFeeds::BlockOf(long id) const {
+  return blocks_[static_cast<std::size_t>((id - blocks_.front().first) / kJerkBlock)];
 }
 
 double ViableFeeds::ReleaseFeed(const Node& n, double s, double v, double a) const {
@@ -421,8 +419,7 @@ double ViableFeeds::ReleaseFeed(const Node& n, double s, double v, double a) con
       if (q->id % kJerkBlock == 0) {
         // A whole block none of whose points can lower `least`: the walk would only look for
         // the end of the release in it.
-        const JerkBlock& b =
-            blocks_[static_cast<std::size_t>((q->id - blocks_.front().first) / kJerkBlock)];
+        const JerkBlock& b = BlockOf(q->id);
         if (b.count == kJerkBlock && LeastJerk(b, v, -a) >= least) {
           if ((q + (kJerkBlock - 1))->s >= s + v * -a / least) break;
           q += kJerkBlock;
@@ -1022,7 +1019,7 @@ void ViableFeeds::Repair(double s, double reach) {
     Node& n = nodes_[k];
     if (std::abs(n.s - s) > reach) continue;
     n.margin = std::max(kMinRepairMargin, n.margin * kRepairFactor);
-    JerkBlock& b = blocks_[static_cast<std::size_t>((n.id - blocks_.front().first) / kJerkBlock)];
+    JerkBlock& b = BlockOf(n.id);
     b.margin = std::min(b.margin, n.margin);
     n.jerk_cap = std::min(n.jerk_cap, n.jerk_cap * kRepairFactor);
     n.acceleration_cap = std::min(n.acceleration_cap, n.acceleration_cap * kRepairFactor);

@@ -156,7 +156,9 @@ class ViableFeeds {
   };
   // Adds a node at the end of the grid.
   void Append(Node node);
-  double LeastJerk(const JerkBlock& b, double v, double deceleration) const;
+  // The block of the node with this id.
+  JerkBlock& BlockOf(long id);
+  const JerkBlock& BlockOf(long id) const;
 
   // Admissible at node `n`: the jerk interval [lo, hi] of the state (v, a), or false; planned
   // with the fraction m of the limits instead of the node's margin.
@@ -185,8 +187,10 @@ class ViableFeeds {
   // out first, the state is not viable whatever lies ahead).
   double ReleaseFeed(const Node& n, double s, double v, double a) const;
   // The least tangential jerk the axes allow at n to any state with feed at most v and
-  // deceleration at most `deceleration` (>= 0): the jerk a release there can count on.
-  double LeastJerk(const Node& n, double v, double deceleration) const;
+  // deceleration at most `deceleration` (>= 0): the jerk a release there can count on. `n` is a
+  // Node, or a JerkBlock (at most that of each of its nodes).
+  template <typename Points>
+  double LeastJerk(const Points& n, double v, double deceleration) const;
   // The slack of (v, a) at arc length s on node n's stretch, towards node `next`.
   double SlackTowards(const Node& n, double s, const Node& next, double v, double a) const;
   // The boundary at the end of the grid (rest there).
