@@ -171,7 +171,7 @@ double MedianMotion(const PathSource& path, const Machine& machine, interp::Vpop
 // along its grid, is in the median of lowered limits no slower than the paper's planner (by more
 // than the 0.5 % the planners are compared by) at F 2 and 5 m/min, and within 6 % and 15 % of
 // the minimum times (2.260 s and 1.6668 s, docs/references.md); over 17 draws
-// (bench/spread.py --draws 17) its medians are 2.328 and 1.803 s. Judged by the jerk limits
+// (bench/spread.py --draws 17) its medians are 2.331 and 1.777 s. Judged by the jerk limits
 // alone it was 6.3 % and 15 % over at its own limits, and slower than the paper's.
 TEST(LookAhead, TridentTipsAreBrakedIntoAsHardAsTheTurnAllows) {
   for (const auto& [feed, minimum] : {std::pair{2000.0, 2.260}, std::pair{5000.0, 1.6668}}) {

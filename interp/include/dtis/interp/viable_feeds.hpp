@@ -139,6 +139,7 @@ class ViableFeeds {
     double acceleration_cap = 0.0;  // largest tangential acceleration the axes allow (a guide)
     double jerk_cap = 0.0;          // largest tangential jerk the axes allow (a guide)
     bool break_after = false;       // the path's derivatives jump between this node and the next
+    bool near_break = false;        // within kBreakReachMm of such a jump
     bool law_entry = false;         // where the stop law's last stretch begins (law_zone_mm)
     double margin = 1.0;            // fraction of the limits planned with here (repairs lower it)
     std::vector<Point> boundary;    // v_max(a), sorted by a
@@ -225,7 +226,8 @@ class ViableFeeds {
   double window_ = 0.0;  // mm ahead of the planner
   std::optional<double> length_;
   std::deque<Node> nodes_;
-  std::deque<JerkBlock> blocks_;  // over nodes_, from the block of its first node on
+  std::deque<JerkBlock> blocks_;     // over nodes_, from the block of its first node on
+  double last_break_s_ = -INFINITY;  // the latest node appended with break_after
   long grid_points_ = 0;
 };
 
