@@ -93,8 +93,9 @@ constexpr double kReleaseTailMm = 1.0;
 // 1.777 at 5, 1.789 -> 1.776 at 8) and the 5-axis G1 program's over nine 14.890 -> 14.846 s;
 // streamed over five lowered limits (callgrind) the trident takes 17 % fewer instructions, the
 // 5-axis program 7 %. Not going on at all away from breaks made the trident's medians at 2.4, 3
-// and 8 m/min 1.5 to 2 % longer; within 0.2 mm of a break instead of 1, the 10 um exports took
-// 6 % (5-axis) and 3.5 % (3-axis) longer.
+// and 8 m/min 1.5 to 2 % longer, and with it, within 0.2 mm of a break instead of 1, the 10 um
+// exports took 6 % (5-axis) and 3.5 % (3-axis) longer; within 0.2 mm and past one grid point
+// away, the 5-axis one 3.6 % (3.115 against 3.006 s, which tests/lookahead_test.cpp catches).
 constexpr int kAwayFromBreaks = 1;
 // How near a break a grid point counts as at it.
 constexpr double kBreakReachMm = 1.0;
@@ -263,10 +264,12 @@ void ViableFeeds::Append(Node node) {
   }
   node.near_break = node.s - last_break_s_ <= kBreakReachMm;
   if (node.break_after) {
-    // The nodes appended within reach before it are near it too.
+    // The nodes appended within reach before it are near it too, back to the first already
+    // marked (those before it are marked, or beyond reach of this break too).
     last_break_s_ = node.s;
     node.near_break = true;
-    for (auto q = nodes_.rbegin(); q != nodes_.rend() && q->s >= node.s - kBreakReachMm; ++q) {
+    for (auto q = nodes_.rbegin();
+         q != nodes_.rend() && !q->near_break && q->s >= node.s - kBreakReachMm; ++q) {
       q->near_break = true;
     }
   }
