@@ -286,9 +286,11 @@ TEST(LookAhead, UnderACommitHorizonTheBlindStopLawProvesWhereNothingLiesAhead) {
 // On G1 programs of short blocks the axes' curvature terms take the whole jerk the axes allow for
 // a few grid points at a time. The release walk that tells whether a decelerating state is viable
 // stopped at such a point and dropped every decelerating state there; it now goes on past it where
-// the deceleration is shallow (viable_feeds.cpp, kShallowRelease). The tilted pass's G1 exports
-// took 15 % (10 um) and 39 % (1 um) longer with the look-ahead than with the paper's planner; now
-// 4.8 % and 10 %.
+// the deceleration is shallow (viable_feeds.cpp, kShallowRelease), past runs of them within
+// kBreakReachMm of a block's end. The tilted pass's G1 exports took 15 % (10 um) and 39 % (1 um)
+// longer with the look-ahead than with the paper's planner; now 4.8 % and 10 %. Going on past runs
+// only within 0.2 mm of a block's end, the 10 um export took 8.6 % longer than with the paper's
+// planner (3.115 s).
 TEST(LookAhead, ShortG1BlocksAreFollowedNearlyAsFastAsByThePapersPlanner) {
   const io::Job job = io::LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
   io::CompareOptions options;
@@ -302,7 +304,8 @@ TEST(LookAhead, ShortG1BlocksAreFollowedNearlyAsFastAsByThePapersPlanner) {
     for (const auto& paper : r.variants) {
       if (paper.name != ahead.name || paper.planner != PlannerKind::kVpop) continue;
       EXPECT_LE(ahead.verify.worst_ratio, 1.0) << ahead.name;
-      EXPECT_LE(ahead.motion_time_s, 1.13 * paper.motion_time_s) << ahead.name;
+      const double bound = ahead.name == "G1 10 um" ? 1.08 : 1.13;
+      EXPECT_LE(ahead.motion_time_s, bound * paper.motion_time_s) << ahead.name;
       ++compared;
     }
   }
