@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# bench/gap.py on the trident at F 5 m/min: dtis_min_time's minimum is the reference of
+# docs/references.md (1.6647 s) within a period, neither planner is faster than it by more than a
+# period (the planners hold every limit within 100 %, the minimum within 1 + 3e-8), the path is
+# cut at its three tips into five pieces, the time each planner loses on the pieces adds up to its
+# gap, and nothing is written next to the sample.
+set -euo pipefail
+dtis=$1
+min_time=$2
+root=$3
+before=$(ls -A "$root/samples/jobs")
+out=$(/usr/bin/python3 "$root/bench/gap.py" --dtis "$dtis" --min-time "$min_time" \
+  --feed-mm-min 5000 "$root/samples/jobs/trident.toml")
+echo "$out"
+if [ "$(ls -A "$root/samples/jobs")" != "$before" ]; then
+  echo "FAIL: gap.py wrote into samples/jobs" >&2
+  exit 1
+fi
+echo "$out" | /usr/bin/python3 -c '
+import re, sys
+text = sys.stdin.read()
+head = re.search(r"minimum ([0-9.]+) s, vpop ([0-9.]+) s .*, lookahead ([0-9.]+) s", text)
+if not head:
+    sys.exit("FAIL: no motion times in the first line")
+minimum, vpop, ahead = map(float, head.groups())
+fails = []
+if abs(minimum - 1.6647) > 1e-3:
+    fails.append(f"minimum {minimum} s, docs/references.md has 1.6647 s")
+rows = [r for r in text.splitlines() if re.match(r"\| [0-9.]+ – [0-9.]+ \|", r)]
+if len(rows) != 5:
+    fails.append(f"{len(rows)} pieces, not 5 (start, three tips, end)")
+for k, (name, total) in enumerate((("vpop", vpop), ("lookahead", ahead))):
+    if total < minimum - 1e-3:
+        fails.append(f"{name} {total} s beats the minimum {minimum} s")
+    lost = sum(float(r.split("|")[4 + 2 * k]) for r in rows) / 1000
+    if abs(lost - (total - minimum)) > 2e-3:
+        fails.append(f"{name} loses {lost:.4f} s on the pieces, {total - minimum:.4f} s in all")
+if fails:
+    sys.exit("FAIL: " + "; ".join(fails))
+print("gap.py: ok")
+'
