@@ -309,7 +309,7 @@ int main(int argc, char** argv) {
     const double length = path->Length().value();
     const double dt = job.vpop.period_s;
 
-    // A feasible start: the paper's planner (any feasible sequence would do).
+    // A feasible start: the job's planner (any feasible sequence would do).
     Collect planned;
     dtis::interp::VpopOptions o = job.vpop;
     dtis::interp::PlanVpop(*path, *machine, o, planned);
@@ -348,7 +348,8 @@ int main(int argc, char** argv) {
     const auto report = dtis::interp::Verify(table.Table(), *machine);
     std::printf("job              %s, feed %.6g mm/min, path %.6g mm\n", job.name.c_str(),
                 job.vpop.feed_mm_s * 60.0, length);
-    std::printf("feasible start   %.6f s (the paper's planner)\n", start_time);
+    std::printf("feasible start   %.6f s (planner %s)\n", start_time,
+                dtis::interp::PlannerName(o.planner));
     std::printf("first solve      %.6f s, %zu periods of %.6f ms (IPOPT status %d)\n", t1,
                 a.s.size() - 1, a.h_ms, static_cast<int>(a.status));
     std::printf("minimum time     %.6f s, %d periods of %.6f ms (IPOPT status %d)\n", t2, n2,
