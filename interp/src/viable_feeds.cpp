@@ -926,7 +926,9 @@ double ViableFeeds::Spacing(const Node& n, double end) const {
   const double d = std::max(end - n.s, 0.0);
   const double v =
       std::max(std::min(Clip(n, 0.0, n.feed_cap), std::cbrt(n.jerk_cap * d * d)), 0.05);
-  double h = std::min(options_.max_spacing_mm, options_.node_time_s * v);
+  const double swing = n.acceleration_cap / n.jerk_cap;  // LookAheadOptions::swing_spacing_mm
+  double h = std::min({options_.max_spacing_mm, options_.node_time_s * v,
+                       std::max(options_.swing_spacing_mm, swing * v)});
   // Where the axes' directions change: q_ss and q_sss relative to q_s, each axis scaled by its
   // velocity limit so that linear and rotary axes weigh alike.
   double d1 = 0.0, d2 = 0.0, d3 = 0.0;
