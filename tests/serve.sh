@@ -138,9 +138,11 @@ wait "$daemon"
 echo "serve: the queue holds at most 64 jobs"
 
 # ---- control stays answerable: neither a client that floods requests without reading a reply,
-# nor a FIFO given as a job, nor a surface job being read delays an abort
+# nor a FIFO given as a job, nor a surface job being read delays an abort. The first job is the
+# lock (7.5 s of motion): with the circle (3.4 s), a loaded machine took so long to get to the
+# abort that the circle had ended and the abort hit the next job.
 start_daemon "$out/d.sock" --to /dev/null --pace realtime --record-dir "$out/d"
-send "{\"cmd\":\"submit\",\"job\":\"$jobs/circle.toml\"}" >/dev/null
+send "{\"cmd\":\"submit\",\"job\":\"$jobs/lock.toml\"}" >/dev/null
 wait_for '"state":"streaming".*"rows":[1-9][0-9][0-9]'
 python3 - "$out/d.sock" <<'PY' &
 import socket, sys
