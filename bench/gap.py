@@ -79,7 +79,7 @@ def pieces(feed, length, rise):
         if b - a > 1:
             cuts.append(feed[max(range(a + 1, b), key=lambda k: f[k])][0])
     cuts.append(length)
-    return sorted(set(cuts)), [feed[i][0] for i in lows[1:-1]]
+    return sorted(set(cuts))
 
 
 def run(cmd):
@@ -122,9 +122,9 @@ def main():
             plans[planner] = read_motion([float(r["t"]) for r in rows],
                                          [float(r["s"]) for r in rows])
     length = minimum[-1][1]
-    cuts, _ = pieces(feeds(minimum), length, args.rise)
-    feed = {name: feeds(m) for name, m in plans.items()}
     feed_min = feeds(minimum)
+    cuts = pieces(feed_min, length, args.rise)
+    feed = {name: feeds(m) for name, m in plans.items()}
     # Motion times: when each motion reaches the end of the path (rows at rest follow).
     end = {name: time_at(m, m[-1][1]) for name, m in plans.items()}
     end_min = time_at(minimum, length)
