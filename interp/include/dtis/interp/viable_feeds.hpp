@@ -152,6 +152,7 @@ class ViableFeeds {
     bool law_entry = false;         // where the stop law's last stretch begins (law_zone_mm)
     double margin = 1.0;            // fraction of the limits planned with here (repairs lower it)
     std::vector<Point> boundary;    // v_max(a), sorted by a
+    std::size_t peak = 0;           // its first point of largest feed
     long id = 0;                    // position in the grid since the first node
   };
   // What LeastJerk reads of kJerkBlock consecutive nodes, each taken at its worst: their least
@@ -208,14 +209,18 @@ class ViableFeeds {
   // The states at the law's entry node n from which the discrete stop law, with the least
   // capacity the grid points from n to the end give, comes to rest within the law's stretch.
   std::vector<Point> LawBoundary(const Node& n) const;
-  // The boundary of `n` from that of `next`.
+  // The boundary of `n` from that of `next` (Flow), and its peak.
   void Propagate(Node* n, const Node& next) const;
+  void Flow(Node* n, const Node& next) const;
+  // The first point of largest feed of a boundary (0 if it is empty).
+  static std::size_t PeakOf(const std::vector<Point>& b);
   // The largest v with (v, a) viable at `n`, by bisection (where no point flows to a), its bracket
   // looked for `descent` steps of 0.6 down from the largest admissible feed.
   double Bisect(const Node& n, const Node& next, double a, int descent = 16) const;
 
-  // The first node at or after arc length s.
+  // The first node at or after arc length s; the first node past it.
   std::deque<Node>::const_iterator FirstAtOrAfter(double s) const;
+  std::deque<Node>::const_iterator After(double s) const;
   // The node at s; `side` < 0: derivatives of the piece before s, > 0: after it, 0: central.
   Node Sample(double s, const PathState& hint, const AxisVector& q_hint, int side) const;
   // The grid spacing at n, the grid ending at `end` (rest).
@@ -238,6 +243,7 @@ class ViableFeeds {
   std::deque<JerkBlock> blocks_;     // over nodes_, from the block of its first node on
   double last_break_s_ = -INFINITY;  // the latest node appended with break_after
   long grid_points_ = 0;
+  mutable std::size_t cursor_ = 0;  // the index After() returned last
 };
 
 }  // namespace dtis::interp
