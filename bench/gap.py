@@ -10,17 +10,24 @@ every setpoint. The path is cut at the peaks of the minimum's feed between its v
 minima from which it rises by --rise on both sides: turns, a slow stretch, rest at the ends), and
 for each piece the table gives the minimum's least feed there, the planner's least
 feed there, and the time each spends on the piece: the gap of a motion time, placed on the path.
+
+With --draws N the planners also plan the job at N limit fractions from 1 down to 0.996 (those of
+`bench/spread.py --draws N`), and a table per planner gives each draw's motion time and, per piece,
+the time it loses there against the minimum at the job's own limits (which the lowered limits
+lengthen by at most 0.14 %) and its least feed there: which piece decides a draw.
 """
 
 import argparse
 import bisect
+import concurrent.futures
 import csv
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
 
-from spread import staged, with_fraction
+from spread import fractions_for, staged, with_fraction
 
 PLANNERS = ("vpop", "lookahead")
 
@@ -89,6 +96,46 @@ def run(cmd):
     return r.stderr
 
 
+def plan(dtis, job, text, planner):
+    """The motion `dtis run --planner planner` makes of the job text (staged beside the job)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        name = staged(job, text, tmp)
+        limiters = os.path.join(tmp, "limiters.csv")
+        run([dtis, "run", name, "-q", "--planner", planner, "-o",
+             os.path.join(tmp, "setpoints.csv"), "--limiters", limiters])
+        with open(limiters) as f:
+            rows = list(csv.DictReader(f))
+    return read_motion([float(r["t"]) for r in rows], [float(r["s"]) for r in rows])
+
+
+def lost_on(motion, minimum, s0, s1):
+    """The time the motion spends on [s0, s1] beyond the minimum's, s."""
+    return (time_at(motion, s1) - time_at(motion, s0)) - (time_at(minimum, s1) -
+                                                          time_at(minimum, s0))
+
+
+def draws_table(name, fractions, motions, minimum, cuts):
+    """One row per draw: its motion time, and per piece the time lost and the least feed."""
+    head = "| limit_fraction | motion (s) |" + "".join(
+        f" {s0:.2f} – {s1:.2f} |" for s0, s1 in zip(cuts, cuts[1:]))
+    rule = "|---:|---:|" + "---:|" * (len(cuts) - 1)
+    rows = [f"{name}, time lost (ms) and least feed (mm/s) per piece:", "", head, rule]
+    totals = []
+    for fraction, motion in zip(fractions, motions):
+        feed = feeds(motion)
+        total = time_at(motion, motion[-1][1])
+        totals.append(total)
+        row = f"| {fraction:g} | {total:.3f} |"
+        for s0, s1 in zip(cuts, cuts[1:]):
+            row += (f" {1000 * lost_on(motion, minimum, s0, s1):+.1f} "
+                    f"({least_feed(feed, s0, s1):.2f}) |")
+        rows.append(row)
+    rows.append("")
+    rows.append(f"median {statistics.median(totals):.3f} s, least {min(totals):.3f} s, "
+                f"largest {max(totals):.3f} s")
+    return "\n".join(rows)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("job")
@@ -99,6 +146,9 @@ def main():
                    help="planners to place (default: both)")
     p.add_argument("--rise", type=float, default=1.5,
                    help="a valley of the minimum's feed rises by this factor on both sides")
+    p.add_argument("--draws", type=int, default=0,
+                   help="also plan at this many limit fractions (bench/spread.py --draws)")
+    p.add_argument("--workers", type=int, default=2, help="draws planned at once")
     args = p.parse_args()
     planners = args.planner or list(PLANNERS)
     with tempfile.TemporaryDirectory() as tmp:
@@ -112,15 +162,7 @@ def main():
             times = [float(r["t"]) for r in csv.DictReader(f)]
         with open(arcs) as f:
             minimum = read_motion(times, [float(x) for x in f if x.strip()])
-        plans = {}
-        for planner in planners:
-            limiters = os.path.join(tmp, planner + ".csv")
-            run([args.dtis, "run", job, "-q", "--planner", planner, "-o",
-                 os.path.join(tmp, planner + "_setpoints.csv"), "--limiters", limiters])
-            with open(limiters) as f:
-                rows = list(csv.DictReader(f))
-            plans[planner] = read_motion([float(r["t"]) for r in rows],
-                                         [float(r["s"]) for r in rows])
+    plans = {planner: plan(args.dtis, args.job, text, planner) for planner in planners}
     length = minimum[-1][1]
     feed_min = feeds(minimum)
     cuts = pieces(feed_min, length, args.rise)
@@ -146,6 +188,16 @@ def main():
             lost = time_at(m, s1) - time_at(m, s0) - t_min
             row += f" {least_feed(feed[name], s0, s1):.2f} | {1000 * lost:+.1f} |"
         print(row)
+    if args.draws:
+        fractions = fractions_for(args.draws)
+        tasks = [(planner, f) for planner in planners for f in fractions]
+        with concurrent.futures.ThreadPoolExecutor(max_workers=args.workers) as pool:
+            motions = dict(zip(tasks, pool.map(
+                lambda t: plan(args.dtis, args.job, with_fraction(text, t[1]), t[0]), tasks)))
+        for planner in planners:
+            print()
+            print(draws_table(planner, fractions, [motions[(planner, f)] for f in fractions],
+                              minimum, cuts))
 
 
 if __name__ == "__main__":

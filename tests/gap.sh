@@ -3,14 +3,15 @@
 # docs/references.md (1.6647 s) within a period, neither planner is faster than it by more than a
 # period (the planners hold every limit within 100 %, the minimum within 1 + 3e-8), the path is
 # cut at its three tips into five pieces, the time each planner loses on the pieces adds up to its
-# gap, and nothing is written next to the sample.
+# gap, and so does each draw's (--draws 3: each planner at three lowered limits), and nothing is
+# written next to the sample.
 set -euo pipefail
 dtis=$1
 min_time=$2
 root=$3
 before=$(ls -A "$root/samples/jobs")
 out=$(/usr/bin/python3 "$root/bench/gap.py" --dtis "$dtis" --min-time "$min_time" \
-  --feed-mm-min 5000 "$root/samples/jobs/trident.toml")
+  --feed-mm-min 5000 --draws 3 "$root/samples/jobs/trident.toml")
 echo "$out"
 if [ "$(ls -A "$root/samples/jobs")" != "$before" ]; then
   echo "FAIL: gap.py wrote into samples/jobs" >&2
@@ -27,6 +28,16 @@ fails = []
 if abs(minimum - 1.6647) > 1e-3:
     fails.append(f"minimum {minimum} s, docs/references.md has 1.6647 s")
 rows = [r for r in text.splitlines() if re.match(r"\| [0-9.]+ – [0-9.]+ \|", r)]
+draws = [r for r in text.splitlines() if re.match(r"\| [0-9.]+ \| [0-9.]+ \| [+-]", r)]
+if len(draws) != 6:
+    fails.append(f"{len(draws)} draws, not 3 for each of the two planners")
+for r in draws:
+    cells = [c.strip() for c in r.strip("|").split("|")]
+    total = float(cells[1])
+    lost = sum(float(c.split()[0]) for c in cells[2:]) / 1000
+    if len(cells) != 7 or abs(lost - (total - minimum)) > 2e-3:
+        fails.append(f"draw at {cells[0]}: {len(cells) - 2} pieces losing {lost:.4f} s, "
+                     f"motion {total} s against the minimum {minimum} s")
 if len(rows) != 5:
     fails.append(f"{len(rows)} pieces, not 5 (start, three tips, end)")
 for k, (name, total) in enumerate((("vpop", vpop), ("lookahead", ahead))):
