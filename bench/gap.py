@@ -182,10 +182,9 @@ def main():
     print(head)
     print(rule)
     for s0, s1 in zip(cuts, cuts[1:]):
-        t_min = time_at(minimum, s1) - time_at(minimum, s0)
         row = f"| {s0:.2f} – {s1:.2f} | {least_feed(feed_min, s0, s1):.2f} |"
         for name, m in plans.items():
-            lost = time_at(m, s1) - time_at(m, s0) - t_min
+            lost = lost_on(m, minimum, s0, s1)
             row += f" {least_feed(feed[name], s0, s1):.2f} | {1000 * lost:+.1f} |"
         print(row)
     if args.draws:
