@@ -10,7 +10,10 @@ limit_fraction`, from 1 down to 0.996) can only lengthen the minimum motion time
 0.14 % at 0.996 (a jerk-limited time grows as the limits' cube root). A planner whose motion
 time moves by more than that is deciding something by chance: which steps back off or repair,
 and where. The table gives, per job and planner, the motion time at the job's own limits and the
-least, median and largest over the lowered ones. With --update, the text between the
+least, median, largest and mean over the lowered ones, with the mean's standard error. Where
+the draws fall into two groups (the trident's tips are passed fast or slowly), the median sits
+between them and jumps with a single draw: compare two builds by their means, over many draws
+(--draws). With --update, the text between the
 `<!-- spread:begin -->` and `<!-- spread:end -->` lines of the given file is replaced.
 """
 
@@ -106,13 +109,15 @@ def table(dtis, jobs, workers, feed_mm_min=None, planners=PLANNERS, fractions=FR
     with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
         times = dict(zip(tasks, pool.map(lambda t: motion_time(dtis, *t, feed_mm_min), tasks)))
     rows = ["| job | planner | at its limits (s) | least (s) | median (s) | largest (s) | "
-            "spread |", "|---|---|---:|---:|---:|---:|---:|"]
+            "spread | mean ± standard error (s) |", "|---|---|---:|---:|---:|---:|---:|---:|"]
     for job in jobs:
         for planner in planners:
             x = [times[(job, planner, f)] for f in fractions]
+            error = statistics.stdev(x) / len(x) ** 0.5
             rows.append(f"| `{os.path.basename(job)}` | {planner} | {x[0]:.3f} | {min(x):.3f} | "
                         f"{statistics.median(x):.3f} | {max(x):.3f} | "
-                        f"{100.0 * (max(x) / min(x) - 1.0):.1f} % |")
+                        f"{100.0 * (max(x) / min(x) - 1.0):.1f} % | "
+                        f"{statistics.mean(x):.4f} ± {error:.4f} |")
     return "\n".join(rows)
 
 

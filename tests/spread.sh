@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # bench/spread.py on the line sample at F 2.5 m/min: both planners get a row, the rows are
-# ordered (least <= median <= largest), the motion at the job's own limits is the closed form
+# ordered (least <= median <= largest, the mean between least and largest), the motion at the job's own limits is the closed form
 # L/F + 2 sqrt(F/J) of a jerk-limited straight move within two periods, every lowered limit can
 # only lengthen it (by the closed form at 99.6 % of J at most), and nothing is written next to
 # the sample (the script plans rewritten copies elsewhere; other tests read that folder).
@@ -30,9 +30,14 @@ for planner in vpop lookahead; do
   row=$(row line "$planner")
   echo "$row" | awk -F'|' -v p="$planner" '{
     own = $4 + 0; least = $5 + 0; median = $6 + 0; largest = $7 + 0
+    split($9, m, "±"); mean = m[1] + 0; error = m[2] + 0
     F = 2500 / 60; J = 5000; L = 100
     exact = L / F + 2 * sqrt(F / J); lowered = L / F + 2 * sqrt(F / (0.996 * J))
     if (!(least <= median && median <= largest)) { print "FAIL: " p " rows out of order"; exit 1 }
+    # The mean is printed to 0.1 ms, the others to 1 ms.
+    if (!(least - 5e-4 <= mean && mean <= largest + 5e-4 && error >= 0 &&
+          error <= largest - least + 1e-3)) {
+      printf "FAIL: %s mean %s outside %.3f .. %.3f s\n", p, $9, least, largest; exit 1 }
     if (own < exact - 0.002 || own > exact + 0.002) {
       printf "FAIL: %s %.3f s, closed form %.4f s\n", p, own, exact; exit 1 }
     if (largest > lowered + 0.002) {
