@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # bench/spread.py on the line sample at F 2.5 m/min: both planners get a row, the rows are
-# ordered (least <= median <= largest, the mean between least and largest), the motion at the job's own limits is the closed form
-# L/F + 2 sqrt(F/J) of a jerk-limited straight move within two periods, every lowered limit can
-# only lengthen it (by the closed form at 99.6 % of J at most), and nothing is written next to
-# the sample (the script plans rewritten copies elsewhere; other tests read that folder).
+# ordered (least <= median <= largest, the mean between least and largest), the motion at the
+# job's own limits is the closed form L/F + 2 sqrt(F/J) of a jerk-limited straight move within
+# two periods, every lowered limit can only lengthen it (by the closed form at 99.6 % of J at
+# most), and nothing is written next to the sample (the script plans rewritten copies
+# elsewhere; other tests read that folder).
 # Then the look-ahead on two smooth curves (the NURBS circle at 300 mm/s, where axis jerk decides
 # all the way round, and the open pocket's bottom curve): lowering the limits by up to 0.4 %
 # moves their motion time by at most 0.5 % (0.14 % is what the limits explain; more means chance
