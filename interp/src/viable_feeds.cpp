@@ -1075,8 +1075,7 @@ void ViableFeeds::Repair(double s, double reach) {
 
 double ViableFeeds::JerkCap(double s) const {
   if (nodes_.empty()) return limits_.tangential_jerk;
-  auto it = After(s);
-  return (it == nodes_.begin() ? *it : *(it - 1)).jerk_cap;
+  return NodeAt(s).jerk_cap;
 }
 
 double ViableFeeds::MinJerkCap(double s0, double s1) const {
@@ -1112,6 +1111,11 @@ std::deque<ViableFeeds::Node>::const_iterator ViableFeeds::After(double s) const
   return it;
 }
 
+const ViableFeeds::Node& ViableFeeds::NodeAt(double s) const {
+  const auto it = After(s);
+  return it == nodes_.begin() ? *it : *(it - 1);
+}
+
 std::deque<ViableFeeds::Node>::const_iterator ViableFeeds::FirstAtOrAfter(double s) const {
   return std::lower_bound(nodes_.begin(), nodes_.end(), s,
                           [](const Node& n, double x) { return n.s < x; });
@@ -1119,9 +1123,8 @@ std::deque<ViableFeeds::Node>::const_iterator ViableFeeds::FirstAtOrAfter(double
 
 bool ViableFeeds::Admissible(double s, double v, double a) const {
   if (nodes_.empty()) return false;
-  auto it = After(s);
   double lo, hi;
-  return Admissible(it == nodes_.begin() ? *it : *(it - 1), v, a, &lo, &hi);
+  return Admissible(NodeAt(s), v, a, &lo, &hi);
 }
 
 void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi) const {
@@ -1129,8 +1132,7 @@ void ViableFeeds::JerkRange(double s, double v, double a, double* lo, double* hi
     *lo = -limits_.tangential_jerk, *hi = limits_.tangential_jerk;
     return;
   }
-  auto it = After(s);
-  const Node& n = it == nodes_.begin() ? *it : *(it - 1);
+  const Node& n = NodeAt(s);
   if (!JerkInterval(n, full_, n.margin, std::max(v, 0.0), a, lo, hi)) {
     *lo = -10.0 * n.jerk_cap;
     *hi = 10.0 * n.jerk_cap;

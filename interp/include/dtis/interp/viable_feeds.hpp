@@ -221,6 +221,8 @@ class ViableFeeds {
   // The first node at or after arc length s; the first node past it.
   std::deque<Node>::const_iterator FirstAtOrAfter(double s) const;
   std::deque<Node>::const_iterator After(double s) const;
+  // The grid point whose stretch holds s (the first one, for s before the grid; not empty).
+  const Node& NodeAt(double s) const;
   // The node at s; `side` < 0: derivatives of the piece before s, > 0: after it, 0: central.
   Node Sample(double s, const PathState& hint, const AxisVector& q_hint, int side) const;
   // The grid spacing at n, the grid ending at `end` (rest).
