@@ -14,7 +14,9 @@ feed there, and the time each spends on the piece: the gap of a motion time, pla
 With --draws N the planners also plan the job at N limit fractions from 1 down to 0.996 (those of
 `bench/spread.py --draws N`), and a table per planner gives each draw's motion time and, per piece,
 the time it loses there against the minimum at the job's own limits (which the lowered limits
-lengthen by at most 0.14 %) and its least feed there: which piece decides a draw.
+lengthen by at most 0.14 %) and its least feed there: which piece decides a draw. Below each such
+table: the draws' median, least, largest and mean with its standard error (bench/spread.py says
+why the mean: draws fall unevenly, and the median jumps with one draw).
 """
 
 import argparse
@@ -131,8 +133,10 @@ def draws_table(name, fractions, motions, minimum, cuts):
                     f"({least_feed(feed, s0, s1):.2f}) |")
         rows.append(row)
     rows.append("")
+    error = statistics.stdev(totals) / len(totals) ** 0.5 if len(totals) > 1 else 0.0
     rows.append(f"median {statistics.median(totals):.3f} s, least {min(totals):.3f} s, "
-                f"largest {max(totals):.3f} s")
+                f"largest {max(totals):.3f} s, mean {statistics.mean(totals):.4f} ± "
+                f"{error:.4f} s (standard error)")
     return "\n".join(rows)
 
 

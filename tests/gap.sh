@@ -38,6 +38,19 @@ for r in draws:
     if len(cells) != 7 or abs(lost - (total - minimum)) > 2e-3:
         fails.append(f"draw at {cells[0]}: {len(cells) - 2} pieces losing {lost:.4f} s, "
                      f"motion {total} s against the minimum {minimum} s")
+for name in ("vpop", "lookahead"):
+    block = text.split(f"{name}, time lost")[-1]
+    totals = [float(r.split("|")[2]) for r in block.splitlines()
+              if re.match(r"\| [0-9.]+ \| [0-9.]+ \| [+-]", r)][:3]
+    summary = re.search(r"least ([0-9.]+) s, largest ([0-9.]+) s, mean ([0-9.]+) ± ([0-9.]+) s",
+                        block)
+    if not summary:
+        fails.append(f"no least, largest and mean of the {name} draws")
+        continue
+    least, largest, mean, error = map(float, summary.groups())
+    if not (least <= mean <= largest) or abs(mean - sum(totals) / len(totals)) > 1e-3:
+        fails.append(f"{name}: mean {mean} s of the draws {totals}, least {least}, "
+                     f"largest {largest}")
 if len(rows) != 5:
     fails.append(f"{len(rows)} pieces, not 5 (start, three tips, end)")
 for k, (name, total) in enumerate((("vpop", vpop), ("lookahead", ahead))):
