@@ -3,8 +3,9 @@
 # docs/references.md (1.6647 s) within a period, neither planner is faster than it by more than a
 # period (the planners hold every limit within 100 %, the minimum within 1 + 3e-8), the path is
 # cut at its three tips into five pieces, the time each planner loses on the pieces adds up to its
-# gap, and so does each draw's (--draws 3: each planner at three lowered limits), and nothing is
-# written next to the sample.
+# gap, and so does each draw's (--draws 3: each planner at three lowered limits), each planner's
+# draws end with their mean (the mean of the rows, between the least and the largest), and nothing
+# is written next to the sample.
 set -euo pipefail
 dtis=$1
 min_time=$2
