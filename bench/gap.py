@@ -29,7 +29,7 @@ import subprocess
 import sys
 import tempfile
 
-from spread import fractions_for, staged, with_fraction
+from spread import fractions_for, mean_and_error, staged, with_fraction
 
 PLANNERS = ("vpop", "lookahead")
 
@@ -133,10 +133,9 @@ def draws_table(name, fractions, motions, minimum, cuts):
                     f"({least_feed(feed, s0, s1):.2f}) |")
         rows.append(row)
     rows.append("")
-    error = statistics.stdev(totals) / len(totals) ** 0.5 if len(totals) > 1 else 0.0
+    mean, error = mean_and_error(totals)
     rows.append(f"median {statistics.median(totals):.3f} s, least {min(totals):.3f} s, "
-                f"largest {max(totals):.3f} s, mean {statistics.mean(totals):.4f} ± "
-                f"{error:.4f} s (standard error)")
+                f"largest {max(totals):.3f} s, mean {mean:.4f} ± {error:.4f} s (standard error)")
     return "\n".join(rows)
 
 

@@ -93,6 +93,12 @@ def motion_time(dtis, job, planner, fraction, feed_mm_min=None):
     return float(m.group(1))
 
 
+def mean_and_error(x):
+    """The mean of the motion times x and its standard error (0 for a single time)."""
+    error = statistics.stdev(x) / len(x) ** 0.5 if len(x) > 1 else 0.0
+    return statistics.mean(x), error
+
+
 def fractions_for(draws):
     """FRACTIONS, or `draws` fractions evenly spaced from 1 down to the same 0.996."""
     if not draws:
@@ -113,11 +119,11 @@ def table(dtis, jobs, workers, feed_mm_min=None, planners=PLANNERS, fractions=FR
     for job in jobs:
         for planner in planners:
             x = [times[(job, planner, f)] for f in fractions]
-            error = statistics.stdev(x) / len(x) ** 0.5
+            mean, error = mean_and_error(x)
             rows.append(f"| `{os.path.basename(job)}` | {planner} | {x[0]:.3f} | {min(x):.3f} | "
                         f"{statistics.median(x):.3f} | {max(x):.3f} | "
                         f"{100.0 * (max(x) / min(x) - 1.0):.1f} % | "
-                        f"{statistics.mean(x):.4f} ± {error:.4f} |")
+                        f"{mean:.4f} ± {error:.4f} |")
     return "\n".join(rows)
 
 
