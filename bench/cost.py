@@ -72,9 +72,10 @@ def inclusive(annotated, name):
 
 
 def setpoints(csv_path):
-    """The setpoint rows of a `dtis run` CSV (its header lines start with a letter)."""
+    """The setpoint rows of a `dtis run` CSV: the lines that start with a number (not its header,
+    nor a blank line)."""
     with open(csv_path) as f:
-        return sum(1 for line in f if line[:1] not in ("", "#") and not line[0].isalpha())
+        return sum(1 for line in f if line.lstrip()[:1] in tuple("0123456789+-."))
 
 
 def measure(dtis, job, planner):
