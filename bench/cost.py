@@ -21,7 +21,8 @@ Instruction counts hardly change from run to run or machine to machine (a build 
 compiler flags changes them); a real-time factor is instructions per setpoint against the
 instructions per second the machine plans at, which docs/benchmarks.md's real-time factors give.
 callgrind runs the planner about 50 times slower than it runs alone: the 5-axis G1 program takes
-about a minute. Needs valgrind (Debian: valgrind) and a dtis whose symbols are not stripped.
+about a minute with the look-ahead, and `vpop`, slower than real time on the circle at 300 mm/s
+and the singular pass, most of an hour on those (--planner lookahead). Needs valgrind (Debian: valgrind) and a dtis whose symbols are not stripped.
 
 --update FILE replaces the block between `<!-- cost:begin -->` and `<!-- cost:end -->` in FILE.
 """
