@@ -22,7 +22,8 @@ compiler flags changes them); a real-time factor is instructions per setpoint ag
 instructions per second the machine plans at, which docs/benchmarks.md's real-time factors give.
 callgrind runs the planner about 50 times slower than it runs alone: the 5-axis G1 program takes
 about a minute with the look-ahead, and `vpop`, slower than real time on the circle at 300 mm/s
-and the singular pass, most of an hour on those (--planner lookahead). Needs valgrind (Debian: valgrind) and a dtis whose symbols are not stripped.
+and the singular pass, most of an hour on those (--planner lookahead). Needs valgrind (Debian:
+valgrind) and a dtis whose symbols are not stripped.
 
 --update FILE replaces the block between `<!-- cost:begin -->` and `<!-- cost:end -->` in FILE.
 """
@@ -37,6 +38,7 @@ import sys
 import tempfile
 
 from markdown_block import replace_block
+from tables import count
 
 PLANNERS = ("vpop", "lookahead")
 
@@ -108,7 +110,7 @@ def render(rows, command):
              "| job | planner | setpoints | planning | flows | profile cap | release | back-offs |",
              "|---|---|---:|---:|---:|---:|---:|---:|"]
     for job, planner, per, n in rows:
-        cells = " | ".join(f"{per[p]:,.0f}".replace(",", " ") for p, _ in PARTS)
+        cells = " | ".join(count(per[p]) for p, _ in PARTS)
         lines.append(f"| `{os.path.basename(job)}` | {planner} | {n} | {cells} |")
     return "\n".join(lines) + "\n"
 

@@ -21,7 +21,7 @@ rows = {}
 for line in sys.stdin:
     cells = [c.strip() for c in line.strip().strip("|").split("|")]
     if len(cells) == 8 and cells[0] == "`line.toml`":
-        rows[cells[1]] = [int(c.replace(" ", "")) for c in cells[2:]]
+        rows[cells[1]] = [float(c.replace(" ", "")) for c in cells[2:]]
 if set(rows) != {"vpop", "lookahead"}:
     sys.exit(f"FAIL: rows for {sorted(rows)}, not vpop and lookahead")
 n_v, plan_v, flows_v, cap_v, release_v, _ = rows["vpop"]
