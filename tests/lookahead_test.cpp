@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/geometry/g1_path.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/viable_feeds.hpp"
 #include "dtis/interp/vpop.hpp"
@@ -310,6 +311,36 @@ TEST(LookAhead, ShortG1BlocksAreFollowedNearlyAsFastAsByThePapersPlanner) {
     }
   }
   EXPECT_EQ(compared, 2);
+}
+
+// A machine as LinuxCNC describes it limits acceleration and little else: with a jerk limit J
+// above A / dt the acceleration may swing across its whole range from one period to the next. A
+// zigzag of 90-degree turns, corners within 0.01 mm, on axes of 100 mm/s and 1000 mm/s^2: from
+// 5e6 mm/s^3 on, the look-ahead's step searched jerks spanning accelerations far outside what
+// the axes allow, stepped over every viable state and came to rest period after period (319 s
+// where the paper's planner takes 3.18 s). Both now plan within 2 % of each other at every jerk.
+TEST(LookAhead, AccelerationLimitedMachinesDoNotCrawl) {
+  std::vector<geometry::ChainMove> moves;
+  for (int k = 1; k <= 10; ++k) {
+    geometry::ChainMove m;
+    m.tip = {10.0 * k, 10.0 * (k % 2), 0.0};
+    m.line = k;
+    moves.push_back(m);
+  }
+  geometry::CornerOptions corners;
+  corners.contour_tol_mm = 0.01;
+  corners.feed_mm_s = 50.0;
+  for (const double jerk : {5e4, 1e6, 5e6, 5e7}) {
+    const auto machine = Cartesian(100.0, 1000.0, jerk);
+    const geometry::G1Path path({0, 0, 0}, Eigen::Vector3d::UnitZ(), moves, *machine, corners);
+    interp::VpopOptions o;
+    o.feed_mm_s = 50.0;
+    const Planned paper = Plan(path, *machine, o, PlannerKind::kVpop);
+    const Planned ahead = Plan(path, *machine, o, PlannerKind::kLookAhead);
+    EXPECT_TRUE(paper.report.Passed()) << jerk;
+    EXPECT_TRUE(ahead.report.Passed()) << jerk;
+    EXPECT_LE(ahead.summary.motion_time_s, 1.02 * paper.summary.motion_time_s) << jerk;
+  }
 }
 
 }  // namespace

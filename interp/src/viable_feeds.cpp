@@ -1078,6 +1078,24 @@ double ViableFeeds::JerkCap(double s) const {
   return NodeAt(s).jerk_cap;
 }
 
+bool ViableFeeds::AccelerationRange(double s, double v, double* lo, double* hi) const {
+  if (nodes_.empty()) return false;
+  const Node& n = NodeAt(s);
+  const double m = n.margin;
+  *lo = -limits_.tangential_acceleration * m;
+  *hi = limits_.tangential_acceleration * m;
+  for (int i = 0; i < n_axes_; ++i) {
+    const double g = n.d1[i];
+    if (std::abs(g) < 1e-12) continue;
+    const double A = limits_.a[i] * m, c = n.d2[i] * v * v;
+    double al = (-A - c) / g, ah = (A - c) / g;
+    if (g < 0.0) std::swap(al, ah);
+    *lo = std::max(*lo, al);
+    *hi = std::min(*hi, ah);
+  }
+  return *lo <= *hi;
+}
+
 double ViableFeeds::MinJerkCap(double s0, double s1) const {
   double cap = std::min(limits_.tangential_jerk, JerkCap(s0));
   for (auto it = FirstAtOrAfter(s0); it != nodes_.end() && it->s <= s1; ++it) {

@@ -953,6 +953,18 @@ double Planner::ProfileCap(const History& h, double lo, double hi, double target
   // that holds the axes within their limits may be many times any axis limit).
   double jlo, jhi;
   profile_->JerkRange(s0, v0 + a0 * dt_ / 2.0, a0, &jlo, &jhi);
+  // Only the jerks that keep the continuous state's acceleration, a0 + 2 j dt, within what the
+  // axes allow: where the jerk limits are high against the acceleration's (J dt > A, as on
+  // machines imported from LinuxCNC) the jerk range spans accelerations far outside the viable
+  // set, the walk below stepped over every viable state in one stride and took the motion to
+  // rest, period after period (a zigzag crawled at 0.35 mm/s: 319 s instead of 3.2 s).
+  if (double alo, ahi;
+      profile_->AccelerationRange(s0, v0, &alo, &ahi) && 2.0 * dt_ * (jhi - jlo) > ahi - alo) {
+    const double lo_a = (alo - a0) / (2.0 * dt_), hi_a = (ahi - a0) / (2.0 * dt_);
+    if (std::max(jlo, lo_a) <= std::min(jhi, hi_a)) {
+      jlo = std::max(jlo, lo_a), jhi = std::min(jhi, hi_a);
+    }
+  }
   const double width = std::max(jhi - jlo, 1.0);
   // Never a state braked so hard that its deceleration cannot be released before the feed
   // reaches zero (the viable set's lower side, which the look-ahead's upper boundary does not

@@ -124,6 +124,10 @@ class ViableFeeds {
   // least of it, and of the tangential acceleration they allow, over [s0, s1] on the grid.
   double JerkCap(double s) const;
   double MinJerkCap(double s0, double s1) const;
+  // The tangential accelerations [lo, hi] the axes allow at feed v at the grid point whose
+  // stretch holds s (as planned: the look-ahead's fractions and any repair's margin there); false
+  // where there are none.
+  bool AccelerationRange(double s, double v, double* lo, double* hi) const;
   double MinAccelerationCap(double s0, double s1) const;
 
   // The exact step found no step from a state this profile held viable near arc length s (its
