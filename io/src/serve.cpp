@@ -506,9 +506,17 @@ struct Client {
   std::string in, out;
   bool validating = false;
   bool eof = false;  // the peer sent everything it will send
+  // After a line over kMaxLine: what it sends is read and dropped (closing with input unread would
+  // reset the connection, and the peer might lose the error), until kMaxDrained bytes.
+  bool discard = false;
+  std::size_t drained = 0;
+  static constexpr std::size_t kMaxDrained = std::size_t{1} << 20;
 
-  bool Readable() const { return !eof && !validating && out.size() < kMaxUnsent; }
-  bool Done() const { return fd < 0 || (eof && !validating && out.empty()); }
+  bool Readable() const { return !eof && (discard || (!validating && out.size() < kMaxUnsent)); }
+  bool Done() const {
+    return fd < 0 || (eof && !validating && out.empty()) ||
+           (discard && drained > kMaxDrained && out.empty());
+  }
 
   // Sends what it can without waiting; a peer gone closes the connection.
   void Flush() {
@@ -553,13 +561,15 @@ void ReadFrom(Client& c) {
     c.eof = true;
   } else if (n < 0) {
     if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) c.Close();
+  } else if (c.discard) {
+    c.drained += static_cast<std::size_t>(n);
   } else {
     c.in.append(buf, static_cast<std::size_t>(n));
     if (c.in.size() > kMaxLine && c.in.find('\n') == std::string::npos) {
       c.out += R"({"ok":false,"error":"request longer than 64 KiB"})"
                "\n";
       c.in.clear();
-      c.eof = true;  // read no more; close once the error is sent
+      c.discard = true;  // answer nothing more; end once the error is sent
     }
   }
 }
@@ -589,6 +599,7 @@ void ControlLoop(const ServeOptions& options, int listener, Daemon& daemon, Vali
       if (c.fd >= 0 && (got & (POLLIN | POLLHUP | POLLERR)) && c.Readable()) ReadFrom(c);
       if (c.fd >= 0 && (got & POLLERR)) c.Close();
       HandleLines(c, daemon, validator);
+      if (c.discard && c.out.empty() && c.fd >= 0) ::shutdown(c.fd, SHUT_WR);  // the error is out
     }
     if (fds[1].revents & POLLIN) {
       for (auto& [to, reply] : validator.TakeReplies()) {
