@@ -349,6 +349,7 @@ void ReleaseStopSignals() {
 // "SIGQUIT", for messages.
 std::string SignalName(int sig) {
   if (sig == SIGRTMIN) return "SIGRTMIN";
+  if (sig == SIGRTMAX) return "SIGRTMAX";
   if (sig > SIGRTMIN && sig <= SIGRTMAX) return fmt::format("SIGRTMIN+{}", sig - SIGRTMIN);
   const char* abbrev = sigabbrev_np(sig);
   return abbrev ? fmt::format("SIG{}", abbrev) : fmt::format("signal {}", sig);
@@ -818,9 +819,11 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand(
       "stream",
       "Plan a job and hand each setpoint over as soon as it is final, as lines for LinuxCNC's "
-      "halstreamer (one per period: the axes in mm and degrees). Aborted (SIGINT/SIGTERM), starved "
-      "or failed streams end with a stop to rest within every axis limit. Exit 0: complete; 5: "
-      "ended early at rest; 3: the stream failed the verifier; 1: bad input.");
+      "halstreamer (one per period: the axes in mm and degrees). Aborted (SIGINT, SIGTERM or any "
+      "other signal that would end dtis; SIGKILL cannot be caught), starved or failed streams end "
+      "with a stop to rest within every axis limit. Exit 0: complete; 5: ended early at rest; 3: "
+      "the stream failed the verifier; 1: bad input, or the output's reader died (what was sent "
+      "is recorded).");
   StreamArgs sa;
   stream->add_option("JOB", sa.job, "job file (see samples/jobs/)")->required();
   stream->add_option("--to", sa.to, kStreamToHelp)->capture_default_str();
@@ -866,7 +869,9 @@ int main(int argc, char** argv) {
   auto* serve = app.add_subcommand(
       "serve",
       "Stay up and stream jobs submitted over a local socket to one CNC, one after the other, each "
-      "linked from where the previous one left the machine (see `dtis send`).");
+      "linked from where the previous one left the machine (see `dtis send`). SIGTERM, SIGINT or "
+      "any other signal that would end it (not SIGKILL) is a shutdown: the job's stop to rest, its "
+      "recording written, the socket removed.");
   ServeArgs va;
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
