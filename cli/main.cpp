@@ -17,6 +17,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <utility>
 
@@ -34,6 +35,7 @@
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
+#include "stop_signals.hpp"
 
 namespace {
 
@@ -276,20 +278,16 @@ std::atomic<int> g_signal{0};
 // them, and keep their default action when dtis itself raised them. SIGPIPE is among them
 // until a stream or daemon ignores it (a reader gone is then a write error, reported).
 struct StopSignals {
-  static constexpr int kMax = 65;
+  static constexpr int kMax = dtis::cli::kMaxSignal;
   std::array<struct sigaction, kMax> old{};
   std::array<bool, kMax> caught{};
   bool installed = false;
 };
 StopSignals g_stop_signals;
 
-bool IsFaultSignal(int sig) {
-  return sig == SIGSEGV || sig == SIGBUS || sig == SIGFPE || sig == SIGILL || sig == SIGTRAP ||
-         sig == SIGSYS || sig == SIGABRT;
-}
-
 extern "C" void OnStopSignal(int sig, siginfo_t* info, void* /*context*/) {
-  if (IsFaultSignal(sig) && (info == nullptr || info->si_code > 0 || info->si_pid == getpid())) {
+  if (dtis::cli::IsFaultSignal(sig) &&
+      (info == nullptr || info->si_code > 0 || info->si_pid == getpid())) {
     // A fault of dtis itself (or abort()): its default action, at once.
     struct sigaction fatal {};
     fatal.sa_handler = SIG_DFL;
@@ -302,22 +300,11 @@ extern "C" void OnStopSignal(int sig, siginfo_t* info, void* /*context*/) {
   g_interrupted = true;
 }
 
-// Calls f(sig) for each stop signal (no allocation: this runs before the libraries initialise).
-template <typename F>
-void ForEachStopSignal(F f) {
-  static constexpr std::array kNamed = {SIGHUP,  SIGINT,    SIGQUIT,   SIGTERM, SIGUSR1, SIGUSR2,
-                                        SIGPIPE, SIGALRM,   SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ,
-                                        SIGPOLL, SIGSTKFLT, SIGPWR,    SIGSYS,  SIGTRAP, SIGABRT,
-                                        SIGBUS,  SIGFPE,    SIGILL,    SIGSEGV};
-  for (const int sig : kNamed) f(sig);
-  for (int sig = SIGRTMIN; sig <= SIGRTMAX; ++sig) f(sig);
-}
-
 // Caught before anything else runs: from the executable's .preinit_array, before the shared
 // libraries initialise (OCCT's take a while), so that a signal that comes while the program
 // starts or a stream's job loads is kept, even where the parent shell ignores SIGINT (as for
 // `cmd &`). Signals the parent ignores are caught too: dtis feeds a machine.
-void CatchStopSignals() {
+void CatchStopSignals(char** envp) {
   StopSignals& s = g_stop_signals;
   if (s.installed) return;
   s.installed = true;
@@ -325,11 +312,33 @@ void CatchStopSignals() {
   stop.sa_sigaction = OnStopSignal;
   stop.sa_flags = SA_SIGINFO;
   sigemptyset(&stop.sa_mask);
-  ForEachStopSignal([&](int sig) {
+  dtis::cli::ForEachStopSignal([&](int sig) {
     if (sig < StopSignals::kMax) s.caught[sig] = sigaction(sig, &stop, &s.old[sig]) == 0;
   });
+  // The launcher (`dtis`, cli/launcher.cpp) blocked them while this program's libraries loaded:
+  // caught now, they are unblocked, and one that came meanwhile is delivered here. (From the
+  // .preinit_array, before the C library sets `environ` up: read from `envp`.)
+  const std::string_view name = dtis::cli::kBlockedByLauncher;
+  for (char** e = envp; e != nullptr && *e != nullptr; ++e) {
+    const std::string_view var = *e;
+    if (var.size() <= name.size() || var.substr(0, name.size()) != name ||
+        var[name.size()] != '=') {
+      continue;
+    }
+    sigset_t set;
+    sigemptyset(&set);
+    const char* blocked = *e + name.size() + 1;
+    for (char* end = nullptr;; blocked = end + 1) {
+      const long sig = std::strtol(blocked, &end, 10);
+      if (end == blocked) break;
+      if (sig > 0 && sig < StopSignals::kMax && s.caught[sig])
+        sigaddset(&set, static_cast<int>(sig));
+      if (*end != ',') break;
+    }
+    sigprocmask(SIG_UNBLOCK, &set, nullptr);
+  }
 }
-extern "C" void DtisCatchStopSignalsFirst(int, char**, char**) { CatchStopSignals(); }
+extern "C" void DtisCatchStopSignalsFirst(int, char**, char** envp) { CatchStopSignals(envp); }
 [[gnu::used, gnu::section(".preinit_array")]] void (*const kCatchStopSignalsFirst)(
     int, char**, char**) = DtisCatchStopSignalsFirst;
 
@@ -685,7 +694,8 @@ int Faces(const std::string& file) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CatchStopSignals();  // done already, unless the .preinit_array was not run
+  CatchStopSignals(environ);                // done already, unless the .preinit_array was not run
+  unsetenv(dtis::cli::kBlockedByLauncher);  // not for the programs dtis runs
   CLI::App app{
       "dtis: axis setpoints at a fixed period, every axis within its velocity, acceleration and "
       "jerk limits (VPOp, Beudaert et al. 2012)."};
