@@ -944,6 +944,10 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dtis: internal error: %s (please report it with the job)\n", e.what());
     return kExitInternal;
+  } catch (...) {
+    std::fputs("dtis: internal error: an unknown exception (please report it with the job)\n",
+               stderr);
+    return kExitInternal;
   }
   return 0;
 }
