@@ -301,9 +301,10 @@ extern "C" void OnStopSignal(int sig, siginfo_t* info, void* /*context*/) {
 }
 
 // Caught before anything else runs: from the executable's .preinit_array, before the shared
-// libraries initialise (OCCT's take a while), so that a signal that comes while the program
-// starts or a stream's job loads is kept, even where the parent shell ignores SIGINT (as for
-// `cmd &`). Signals the parent ignores are caught too: dtis feeds a machine.
+// libraries initialise, so that a signal that comes while the program starts or a stream's job
+// loads is kept, even where the parent shell ignores SIGINT (as for `cmd &`). Signals the parent
+// ignores are caught too: dtis feeds a machine. (While the dynamic loader relocates the libraries,
+// before this runs, the launcher keeps them blocked.)
 void CatchStopSignals(char** envp) {
   StopSignals& s = g_stop_signals;
   if (s.installed) return;
