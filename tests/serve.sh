@@ -5,7 +5,8 @@
 # until "resume"; a pause holds at rest at the end of the current segment. A second daemon on a
 # live socket is refused; SIGTERM, SIGINT and SIGHUP mid-job end it at rest with its recording
 # complete, at three moments each, and so does every other signal whose default would end it
-# (SIGQUIT, SIGUSR1, ... the real-time ones), for serve and for stream; a stream whose parent
+# (SIGQUIT, SIGUSR1, ... the real-time ones), for serve and for stream; a SIGINT is kept from the
+# launcher's first instructions on (`dtis` next to DTIS, which is dtis-main); a stream whose parent
 # ignores SIGINT still stops on it, and one whose reader dies records what it sent. Bad jobs are
 # refused at submit, whole, an endless program within 5 s while status answers; a validation
 # under way never delays control, and shutdown cancels it. Requests that are not UTF-8 or give a
