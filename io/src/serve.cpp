@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -507,15 +508,20 @@ struct Client {
   bool validating = false;
   bool eof = false;  // the peer sent everything it will send
   // After a line over kMaxLine: what it sends is read and dropped (closing with input unread would
-  // reset the connection, and the peer might lose the error), until kMaxDrained bytes.
+  // reset the connection, and the peer might lose the error), until it closes, kMaxDrained bytes
+  // or kMaxDraining, whichever comes first.
   bool discard = false;
   std::size_t drained = 0;
+  std::chrono::steady_clock::time_point discard_since{};
   static constexpr std::size_t kMaxDrained = std::size_t{1} << 20;
+  static constexpr std::chrono::seconds kMaxDraining{5};
 
   bool Readable() const { return !eof && (discard || (!validating && out.size() < kMaxUnsent)); }
   bool Done() const {
     return fd < 0 || (eof && !validating && out.empty()) ||
-           (discard && drained > kMaxDrained && out.empty());
+           (discard && out.empty() &&
+            (drained > kMaxDrained ||
+             std::chrono::steady_clock::now() - discard_since > kMaxDraining));
   }
 
   // Sends what it can without waiting; a peer gone closes the connection.
@@ -570,6 +576,7 @@ void ReadFrom(Client& c) {
                "\n";
       c.in.clear();
       c.discard = true;  // answer nothing more; end once the error is sent
+      c.discard_since = std::chrono::steady_clock::now();
     }
   }
 }
