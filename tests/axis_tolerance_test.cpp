@@ -305,6 +305,16 @@ range = [40, 40]
                     {"axis_tolerance_deg", "tilt_yaw"});
 }
 
+// A tolerance the law cannot hold without knots closer than 0.5 mm (the rule's axis is only C1
+// at the knot lines) refuses the job, naming the face, the pass, where, and how far off it stays.
+TEST(AxisTolerance, ATolerancesTooTightToHoldIsRefusedWithWhere) {
+  const TopoDS_Face face = CubicWaveFace();
+  const FaceSurface fs(face, "cubic wave");
+  test::ExpectError([&] { strategies::BuildPasses(fs, Ball(3.0), Tilted10(1e-5), MiddlePass()); },
+                    {"cubic wave", "pass 1", "arc length", "axis_tolerance_deg = 1e-05",
+                     "too abruptly", "deg from it"});
+}
+
 // The law itself: a quintic fitted to a smooth axis reproduces it, its derivative is the
 // derivative of its value, and it goes on past its ends smoothly.
 TEST(AxisLaw, FitsASmoothAxisAndDifferentiatesIt) {

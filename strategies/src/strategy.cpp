@@ -700,7 +700,7 @@ class Builder {
           if (breaks[j + 1] - breaks[j] < 2.0 * kMinAxisSpanMm) {
             FailSmoothing(pass, worst_s, Eigen::Vector2d::Constant(NAN),
                           fmt::format("the rule's axis turns too abruptly here: a quintic law with "
-                                      "knots {} mm apart is still {:.3g} deg from it; give a "
+                                      "knots {:.3g} mm apart is still {:.3g} deg from it; give a "
                                       "larger tolerance or 0 (the rule's axis)",
                                       breaks[j + 1] - breaks[j], worst * 180.0 / M_PI));
           }
