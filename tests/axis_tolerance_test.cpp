@@ -203,6 +203,7 @@ TEST(AxisTolerance, ASmoothedAxisStaysWithinItsToleranceTouchesTheFaceAndPlansFa
     // It is smoothed: the law leaves the rule's axis by a good part of the tolerance.
     EXPECT_GT(worst_axis, 0.2 * kTolDeg * kDeg) << worst_axis / kDeg << " deg";
     EXPECT_LE(worst_contact, kContactMm);
+    test::ExpectRoundingStepsHold(pass, c.name);
     // The rule's own pass touches as closely, and follows the rule to rounding.
     {
       PathState e = exact.passes[0]->Start();
