@@ -183,6 +183,13 @@ TEST(AxisTolerance, ASmoothedAxisStaysWithinItsToleranceTouchesTheFaceAndPlansFa
     // The same stretch of the face: the ends move by what the axis moves the tip.
     EXPECT_NEAR(length, exact.passes[0]->Length().value(), 0.01);
     EXPECT_GT(length, 70.0);
+    // It reports the knot lines it crosses as breaks, as the rule's pass does (the tip is a few
+    // micrometres elsewhere, so the arc lengths move by as much).
+    ASSERT_EQ(pass.KnotLines().size(), exact.passes[0]->KnotLines().size());
+    EXPECT_GE(pass.KnotLines().size(), 7u);
+    for (std::size_t k = 0; k < pass.KnotLines().size(); ++k) {
+      EXPECT_NEAR(pass.KnotLines()[k], exact.passes[0]->KnotLines()[k], 0.01) << k;
+    }
     // At points unlike the law's samples (every 0.0137 mm, marching from the start).
     double worst_axis = 0.0, worst_contact = 0.0;
     PathState st = pass.Start();

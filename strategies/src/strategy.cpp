@@ -41,6 +41,7 @@ struct Candidate {
   double length = 0.0;
   double order = 0.0;  // position of the start along the travel, to sort passes of one line
   std::vector<Bridge> bridges;
+  std::vector<double> knot_lines;  // arc lengths where the trace crosses a knot line of the face
   std::vector<Gap> gaps;  // sorted by arc length: the crossing's passes are the pieces between
 };
 
@@ -111,9 +112,13 @@ class Builder {
           for (double* x : {&b.s_start, &b.s_in, &b.s_out, &b.s_exit}) *x -= s0;
           bridges.push_back(b);
         }
-        list.passes.push_back(
-            std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, from, to,
-                                          s1 - s0, spec_.newton, std::move(bridges)));
+        std::vector<double> knot_lines;
+        for (const double k : c.knot_lines) {
+          if (k > s0 && k < s1) knot_lines.push_back(k - s0);
+        }
+        list.passes.push_back(std::make_unique<SurfacePass>(
+            e, static_cast<int>(list.passes.size()) + 1, from, to, s1 - s0, spec_.newton,
+            std::move(bridges), std::move(knot_lines)));
         list.passes.back()->SetRidesOverFromPrevious(rides);
         ridden.push_back(rides ? static_cast<int>(list.unreachable.size()) - 1 : -1);
         return true;
@@ -627,6 +632,7 @@ class Builder {
         s += c.x_unfit;
         continue;
       }
+      AddKnotLines(e, cur, next, s, h, &cand->knot_lines);
       s += h;
       cur = next;
       h = std::min(full, 2.0 * h);
@@ -718,7 +724,7 @@ class Builder {
                                           ContactPoint* end_out) const {
     const double length = exact.Length().value();
     const double tol = orientation_.axis_tolerance_rad;
-    if (!exact.Breaks(0.0, length).empty()) {
+    if (exact.HasBridges()) {
       FailSmoothing(exact, 0.0, Eigen::Vector2d(exact.Start().u, exact.Start().v),
                     "the pass crosses a pole of the face, where its axis is not smoothed; give 0");
     }
@@ -763,6 +769,7 @@ class Builder {
       }
       // March to where the tip crosses the exact end's plane across the travel.
       std::vector<ContactPoint> points{cur};
+      std::vector<double> knot_lines;  // where the march crosses the face's knot lines
       const auto beyond = [&](const ContactPoint& p) {
         return (p.tip - exact_end.tip).dot(exact_end.tangent);
       };
@@ -797,9 +804,11 @@ class Builder {
           if (!e.Step(cur, hi, o, &next, &st, &its)) {
             FailSmoothing(exact, cur.s, cur.uv, "the smoothed pass's end does not converge");
           }
+          AddKnotLines(e, cur, next, cur.s, hi, &knot_lines);
           points.push_back(next);
           break;
         }
+        AddKnotLines(e, cur, next, cur.s, h, &knot_lines);
         points.push_back(next);
         cur = next;
         h = std::min(full, 2.0 * h);
@@ -893,8 +902,39 @@ class Builder {
           e.EvaluateAt(end.uv, new_length, end_out, end.guide_t) != EvalStatus::kOk) {
         FailSmoothing(exact, start.s, start.uv, "the smoothed pass's ends do not evaluate");
       }
-      return std::make_unique<SurfacePass>(e, exact.Index(), *start_out, *end_out, new_length, o);
+      std::vector<double> knots_on_pass;
+      for (const double k : knot_lines) {
+        if (k > shift && k - shift < new_length) knots_on_pass.push_back(k - shift);
+      }
+      return std::make_unique<SurfacePass>(e, exact.Index(), *start_out, *end_out, new_length, o,
+                                           std::vector<Bridge>{}, std::move(knots_on_pass));
     }
+  }
+
+  // The knot lines of the face the step of h mm from `from` (at arc length s) to `to` crosses:
+  // the arc length of each crossing, found by bisection on the step to 1e-9 mm.
+  void AddKnotLines(const PassEvaluator& e, const ContactPoint& from, const ContactPoint& to,
+                    double s, double h, std::vector<double>* out) const {
+    std::vector<double> found;
+    for (const int axis : {0, 1}) {
+      const std::vector<double>& knots = axis == 0 ? face_.UKnotLines() : face_.VKnotLines();
+      const double a = from.uv[axis], b = to.uv[axis];
+      for (const double k : knots) {
+        if (!((a < k && b >= k) || (a > k && b <= k))) continue;
+        double lo = 0.0, hi = h;
+        ContactPoint p;
+        EvalStatus st;
+        int its = 0;
+        while (hi - lo > 1e-9) {
+          const double mid = 0.5 * (lo + hi);
+          if (!e.Step(from, mid, spec_.newton, &p, &st, &its)) break;
+          ((p.uv[axis] - k) * (a - k) > 0.0 ? lo : hi) = mid;
+        }
+        found.push_back(s + 0.5 * (lo + hi));
+      }
+    }
+    std::sort(found.begin(), found.end());
+    out->insert(out->end(), found.begin(), found.end());
   }
 
   // One step of about `h` mm of the contact point along the strategy's line on the face (not of
