@@ -293,10 +293,10 @@ class GcodeReader::Blocks {
 };
 
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
-                         std::shared_ptr<const ToolTable> tools)
+                         std::shared_ptr<const ToolTable> tools, Cancel* cancel)
     : blocks_(std::make_unique<Blocks>(path)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools));
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel);
     return;
   }
   if (tools) {

@@ -85,7 +85,8 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
   return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
 }
 
-Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools)
+Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
+                         Cancel* cancel)
     : file_(path) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
@@ -138,6 +139,7 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
     Reap();
     throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
   }
+  kill_on_cancel_ = Cancel::Hook(cancel, [pid = pid_] { ::kill(pid, SIGKILL); });
 }
 
 Rs274Reader::Rs274Reader(std::string_view records, const std::string& name)
@@ -164,6 +166,7 @@ bool Rs274Reader::NextRecord() {
 }
 
 Rs274Reader::~Rs274Reader() {
+  kill_on_cancel_.Reset();
   if (pid_ > 0) ::kill(pid_, SIGKILL);
   if (out_ != nullptr) std::fclose(out_);
   if (pid_ > 0) {
@@ -174,6 +177,7 @@ Rs274Reader::~Rs274Reader() {
 }
 
 std::string Rs274Reader::Reap() {
+  kill_on_cancel_.Reset();  // the pid stays ours until it is reaped
   if (pid_ <= 0) return {};
   int status = 0;
   pid_t done;
