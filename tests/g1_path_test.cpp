@@ -745,7 +745,8 @@ TEST(GcodeProgram, BadProgramsNameTheLine) {
   };
   EXPECT_EQ(error("G0 X0 Y0\nG1 X10 F600 A5\n"),
             "p.ngc: the program moves rotary axis A but machine 'test' has none");
-  EXPECT_EQ(error("G0 X0 Y0\n"), "p.ngc: the program never moves after its first positioning move");
+  EXPECT_EQ(error("G0 X0 Y0\n"),
+            "p.ngc: the program never moves from where it starts (0, 0, 0 mm)");
 }
 
 TEST(GcodeProgram, SegmentsAreBuiltOneChainAtATime) {

@@ -130,10 +130,16 @@ class GcodeProducer {
   GcodeProducer(const Job& job, const Machine& machine) : file_(job.path.gcode_file) {
     const GcodeInterpreter which = job.path.gcode.interpreter;
     const std::shared_ptr<const ToolTable>& tools = job.path.gcode.tool_table;
+    GcodeStart start;
+    try {
+      start = GcodeStartOf(job.path.gcode, machine);
+    } catch (const Error& e) {
+      throw Error("{}: [path] {}", job.file, e.what());
+    }
     // In the order `dtis run` finds them: bad blocks, rotary words the machine lacks, corners.
     std::array<bool, 3> uses_rotary{};
     {
-      GcodeReader blocks(file_, which, tools);
+      GcodeReader blocks(file_, which, tools, start);
       while (blocks.Next()) {
       }
       uses_rotary = blocks.UsesRotary();
@@ -145,7 +151,7 @@ class GcodeProducer {
     // Which long chains turn the tool: they are smoothed as 5-axis chains from their first move.
     std::vector<bool> five_axis;
     {
-      GcodeReader reader(file_, which, tools);
+      GcodeReader reader(file_, which, tools, start);
       const auto scan = build(reader);
       scan->ScanOnly();
       while (const auto s = scan->Next()) {
@@ -153,14 +159,14 @@ class GcodeProducer {
       }
     }
     {
-      GcodeReader reader(file_, which, tools);
+      GcodeReader reader(file_, which, tools, start);
       const auto all = build(reader);
       all->SetWindowedFiveAxis(five_axis);
       while (const auto s = all->Next()) {
         if (s->windowed) static_cast<const geometry::G1Path&>(*s->path).Check();
       }
     }
-    reader_ = std::make_unique<GcodeReader>(file_, which, tools);
+    reader_ = std::make_unique<GcodeReader>(file_, which, tools, start);
     segments_ = build(*reader_);
     segments_->SetWindowedFiveAxis(std::move(five_axis));
   }
@@ -232,7 +238,13 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
   if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from);
   ListSegments::Producer next;
   if (job.path.kind == PathSpec::Kind::kGcode) {
-    next = [producer = std::make_shared<GcodeProducer>(job, machine)] { return (*producer)(); };
+    // A program starts where the machine is, as LinuxCNC runs it: `from`, else the job's start.
+    Job started = job;
+    if (from) {
+      started.path.gcode.from.resize(static_cast<std::size_t>(machine.AxisCount()));
+      FileUnits(machine).FromPlanner(*from, started.path.gcode.from.data());
+    }
+    next = [producer = std::make_shared<GcodeProducer>(started, machine)] { return (*producer)(); };
   } else {
     std::shared_ptr<const PathSource> path = BuildPath(job);
     CheckMotionBound(job, path->Length().value_or(0.0));
