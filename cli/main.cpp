@@ -212,9 +212,7 @@ int Run(const RunArgs& a) {
           job.file);
     }
     const auto machine = dtis::io::LoadJobMachine(job);
-    const dtis::AxisVector q = ParseAxisPositions(a.from, *machine);
-    job.path.gcode.from.resize(static_cast<std::size_t>(machine->AxisCount()));
-    dtis::io::FileUnits(*machine).FromPlanner(q, job.path.gcode.from.data());
+    job.path.gcode.from = dtis::io::GcodeFrom(ParseAxisPositions(a.from, *machine), *machine);
   }
   std::string setpoints = !a.output.empty()            ? a.output
                           : !job.setpoints_out.empty() ? job.setpoints_out

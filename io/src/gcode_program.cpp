@@ -65,13 +65,20 @@ GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine) {
   }
   std::vector<double> values = options.from;
   values.resize(static_cast<std::size_t>(axes), 0.0);
-  const AxisVector q = FileUnits(machine).ToPlanner(values);
-  start.tip = machine.Forward(q).tip;
+  start.tip = Vector3d(values[0], values[1], values[2]);
   const std::array<int, 3> rotary = RotaryWordAxes(machine);
   for (std::size_t k = 0; k < 3; ++k) {
     if (rotary[k] >= 0) start.rotary[k] = values[static_cast<std::size_t>(rotary[k])];
   }
   return start;
+}
+
+std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine) {
+  std::vector<double> values(static_cast<std::size_t>(machine.AxisCount()));
+  FileUnits(machine).FromPlanner(q, values.data());
+  const Vector3d tip = machine.Forward(q).tip;
+  for (int k = 0; k < 3; ++k) values[static_cast<std::size_t>(k)] = tip[k];
+  return values;
 }
 
 GcodeToolAxis::GcodeToolAxis(const GcodeProgram& program, const Machine& machine)

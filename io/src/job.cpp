@@ -75,8 +75,8 @@ void ReadGcodeStart(TomlTable& path, const std::string& job_file, GcodeOptions* 
   if (path.Has("from")) {
     gcode->from = path.Numbers("from");
     if (gcode->from.size() < 3 || gcode->from.size() > 6) {
-      path.Fail("from", fmt::format("expected where the machine is, [X, Y, Z] or every axis of "
-                                    "the machine (mm, degrees), got {} values",
+      path.Fail("from", fmt::format("expected where the machine is, [X, Y, Z] (mm) or with its "
+                                    "rotary axes (degrees), got {} values",
                                     gcode->from.size()));
     }
   }

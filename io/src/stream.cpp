@@ -240,10 +240,7 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
   if (job.path.kind == PathSpec::Kind::kGcode) {
     // A program starts where the machine is, as LinuxCNC runs it: `from`, else the job's start.
     Job started = job;
-    if (from) {
-      started.path.gcode.from.resize(static_cast<std::size_t>(machine.AxisCount()));
-      FileUnits(machine).FromPlanner(*from, started.path.gcode.from.data());
-    }
+    if (from) started.path.gcode.from = GcodeFrom(*from, machine);
     next = [producer = std::make_shared<GcodeProducer>(started, machine)] { return (*producer)(); };
   } else {
     std::shared_ptr<const PathSource> path = BuildPath(job);

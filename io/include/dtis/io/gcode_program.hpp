@@ -49,9 +49,10 @@ struct GcodeOptions {
   // and dropped behind the planner (geometry::G1Path::Window), so that memory does not grow with
   // it; 0: every chain whole. BuildGcodePlan (dtis run) holds every chain whole.
   std::size_t window_blocks = 4096;
-  // Where the machine is as the program starts, its axis positions in file units (mm, degrees):
-  // X Y Z then its rotary axes, or X Y Z alone (rotary axes at 0); empty: the origin, where
-  // LinuxCNC's sim configurations home. The first move is planned from there.
+  // Where the machine is as the program starts, in the program's frame (as LinuxCNC's display
+  // shows it): the tip X Y Z (mm), then the machine's rotary axes (degrees), or X Y Z alone (rotary
+  // axes at 0); empty: the origin, where LinuxCNC's sim configurations home. The first move is
+  // planned from there.
   std::vector<double> from;
   // Instead: the program starts at the end of its first move, which is not planned (`dtis
   // compare`'s exports, whose first move goes to the first pass, where the exact path starts).
@@ -64,6 +65,9 @@ struct GcodeOptions {
 // `options`' start on `machine`: where its tip is and its rotary words, and the parameters.
 // Throws dtis::Error "from: ..." when `from` has neither 3 values nor one per axis of the machine.
 GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine);
+// GcodeOptions::from for the machine at axis positions `q` (planner units): its tip through the
+// forward kinematics, and its rotary axes.
+std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine);
 
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
 std::array<int, 3> RotaryWordAxes(const Machine& machine);
