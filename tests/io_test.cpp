@@ -182,5 +182,31 @@ TEST(AtomicFile, ADevicesFailedWriteIsAnErrorAndLeavesNothing) {
   EXPECT_EQ(FileText(regular), "x\n");
 }
 
+// A G-code job says where the machine is and which work offsets are in force: its [path] from,
+// LinuxCNC's parameter file, and [path.work_offsets] over the file's.
+TEST(JobFile, GcodeStartAndWorkOffsets) {
+  const std::string var = test::Scratch("job_sim.var");
+  std::ofstream(var) << "5220\t1.000000\n5221\t10.000000\n5241\t20.000000\n";
+  const std::string head = "machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n";
+  const Job job =
+      ParseJob(head + "from = [0, 0, 50]\nparameters = \"" + var +
+                   "\"\n[path.work_offsets]\nG55 = [1, 2, 3]\n\"G59.3\" = [4, 5, 6, 7, 8, 9]\n",
+               "j.toml");
+  EXPECT_EQ(job.path.gcode.from, (std::vector<double>{0, 0, 50}));
+  const auto& p = job.path.gcode.parameters;
+  EXPECT_EQ(p.at(5221), 10.0);  // the file's G54
+  EXPECT_EQ(p.at(5241), 1.0);   // G55 from the job, over the file's 20
+  EXPECT_EQ(p.at(5243), 3.0);
+  EXPECT_EQ(p.at(5244), 0.0);  // no A given: 0
+  EXPECT_EQ(p.at(5381), 4.0);
+  EXPECT_EQ(p.at(5386), 9.0);
+  ExpectError([&] { ParseJob(head + "[path.work_offsets]\nG60 = [1, 2, 3]\n", "j.toml"); },
+              "key 'path.work_offsets.G60': expected a coordinate system, G54 to G59");
+  ExpectError([&] { ParseJob(head + "[path.work_offsets]\nG54 = [1, 2]\n", "j.toml"); },
+              "key 'path.work_offsets.G54': expected [X, Y, Z] (mm) or [X, Y, Z, A, B, C]");
+  ExpectError([&] { ParseJob(head + "from = [1, 2]\n", "j.toml"); },
+              "key 'path.from': expected where the machine is");
+}
+
 }  // namespace
 }  // namespace dtis::io
