@@ -347,11 +347,12 @@ class GcodeReader::Blocks {
 };
 
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
-                         std::shared_ptr<const ToolTable> tools, const GcodeStart& start)
+                         std::shared_ptr<const ToolTable> tools, Cancel* cancel,
+                         const GcodeStart& start)
     : blocks_(interpreter == GcodeInterpreter::kRs274ngc ? nullptr
                                                          : std::make_unique<Blocks>(path, start)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), start);
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel, start);
     return;
   }
   if (tools) {
@@ -431,7 +432,7 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
 
 GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
                        std::shared_ptr<const ToolTable> tools, const GcodeStart& start) {
-  GcodeReader reader(path, interpreter, std::move(tools), start);
+  GcodeReader reader(path, interpreter, std::move(tools), nullptr, start);
   return ReadAll(reader);
 }
 

@@ -86,7 +86,7 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
 }
 
 Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
-                         const GcodeStart& start)
+                         Cancel* cancel, const GcodeStart& start)
     : file_(path) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
@@ -150,6 +150,7 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
     Reap();
     throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
   }
+  kill_on_cancel_ = Cancel::Hook(cancel, [pid = pid_] { ::kill(pid, SIGKILL); });
 }
 
 Rs274Reader::Rs274Reader(std::string_view records, const std::string& name)
@@ -176,6 +177,7 @@ bool Rs274Reader::NextRecord() {
 }
 
 Rs274Reader::~Rs274Reader() {
+  kill_on_cancel_.Reset();
   if (pid_ > 0) ::kill(pid_, SIGKILL);
   if (out_ != nullptr) std::fclose(out_);
   if (pid_ > 0) {
@@ -186,6 +188,7 @@ Rs274Reader::~Rs274Reader() {
 }
 
 std::string Rs274Reader::Reap() {
+  kill_on_cancel_.Reset();  // the pid stays ours until it is reaped
   if (pid_ <= 0) return {};
   int status = 0;
   pid_t done;

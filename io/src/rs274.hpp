@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "dtis/io/cancel.hpp"
 #include "dtis/io/gcode.hpp"
 #include "dtis/io/tool_table.hpp"
 
@@ -27,9 +28,10 @@ class Rs274Reader {
   // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
   // number exists, without offsets), from where `start` says the machine is and with its
   // parameters (the work offsets). Throws dtis::Error when the file cannot be read or dtis-rs274
-  // cannot be started.
+  // cannot be started. `cancel` (which must outlive the reader), once requested, kills the
+  // interpreter: Next() then throws.
   explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr,
-                       const GcodeStart& start = {});
+                       Cancel* cancel = nullptr, const GcodeStart& start = {});
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running
@@ -58,6 +60,7 @@ class Rs274Reader {
   std::string file_;
   pid_t pid_ = -1;
   std::FILE* out_ = nullptr;
+  Cancel::Hook kill_on_cancel_;           // reset before the interpreter is reaped
   std::optional<std::string_view> text_;  // records given as text, what is left of them
   std::string record_;
   long records_ = 0;

@@ -24,6 +24,7 @@
 
 namespace dtis::io {
 
+class Cancel;  // cancel.hpp
 class Rs274Reader;
 struct ToolTable;  // tool_table.hpp
 
@@ -109,11 +110,13 @@ class GcodeReader {
   // Reads the file at `path` (throws when it cannot be opened) with `interpreter`. With a tool
   // table (LinuxCNC's interpreter only), G43 and G43.2 apply its tool length offsets to the moves
   // that follow, as LinuxCNC does; without one, G43 is noted and the programmed tip is planned.
+  // `cancel` (which must outlive the reader), once requested, stops LinuxCNC's interpreter at once,
+  // even one that runs without a move: Next() then throws (check `cancel` between moves).
   // `start`: where the machine is and the work offsets (by default at the origin, G54 without
   // offsets).
   explicit GcodeReader(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
-                       std::shared_ptr<const ToolTable> tools = nullptr,
+                       std::shared_ptr<const ToolTable> tools = nullptr, Cancel* cancel = nullptr,
                        const GcodeStart& start = {});
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
   GcodeReader(std::string_view text, const std::string& source_name, const GcodeStart& start = {});
