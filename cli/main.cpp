@@ -237,15 +237,20 @@ int Run(const RunArgs& a) {
                  dtis::io::UnfitMessage(job, result).c_str());
     return kExitVerifyFailed;
   }
-  progress.Phase("writing");
-  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file, a.keep_failed);
+  // The report lands with the setpoints: one written in place (a device, a FIFO) first, since it
+  // cannot be taken back, so that a failed write there leaves no setpoints.
+  std::optional<dtis::io::AtomicFile> html;
   if (!a.report.empty()) {
     progress.Phase("writing the report");
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
-    dtis::io::WriteFileAtomically(a.report, RenderJobReport(job, std::move(in), plotly));
+    html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
+    if (html->InPlace()) html->Commit();
   }
+  progress.Phase("writing");
+  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file, a.keep_failed);
+  if (html && !html->InPlace()) html->Commit();
   progress.Clear();
   if (!a.quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);

@@ -330,6 +330,9 @@ if [ -c /dev/full ] && [ -w /dev/full ]; then
   expect limiters-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --limiters /dev/full
   expect record-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" stream "$work/line.toml" --to /dev/null --record /dev/full -q
   expect import-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" machine import "$work/mikron_ucp710_xyz.toml" -o /dev/full
+  if [ -s "${DTIS_PLOTLY_JS:-$root/tools/report/node_modules/plotly.js-dist-min/plotly.min.js}" ]; then
+    expect report-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --report /dev/full
+  fi
   device_kept devfull-kept /dev/full c
 fi
 # A FIFO stays a FIFO, and what reads it gets the setpoints.
