@@ -45,6 +45,7 @@
 #include <sstream>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/occt_convert.hpp"
@@ -1352,6 +1353,63 @@ TEST(SurfaceProperty, TiltedPassesOnAWavyFaceSetUpAwayFromThePolePlanAndVerify) 
     EXPECT_NEAR(planned.points.back().s, length, 1e-6);
     ExpectToolAboveFace(face, tool, passes, 0.1, 0.8);
   }
+}
+
+// The axis smoothed within 0.09 deg ([orientation] axis_tolerance_deg) on the same set-up, with the
+// bull nose that rests on both flanks of the valleys at its passes' ends: the passes are the same
+// stretches of the face (their ends cut where the smoothed tool would touch the far flank), the
+// axis stays within the tolerance of the rule's, no sampled point of the tool is under the face
+// (ends included), the tool rides over the valleys it rode over with the rule's axis only where
+// the straight move keeps it above the face, and a pass plans within every limit.
+TEST(SurfaceProperty, ASmoothedAxisKeepsABullNoseOutOfAWavyFaceAtItsValleys) {
+  gp_Trsf set_up;
+  set_up.SetRotation(gp::OX(), 60.0 * std::numbers::pi / 180.0);
+  const TopoDS_Face face =
+      TopoDS::Face(BRepBuilderAPI_Transform(WavyRuledFace(), set_up, Standard_True).Shape());
+  const FaceSurface surface(face, "wavy, set up 60 deg about X");
+  const Tool bull = Torus(Tool::Kind::kBullNose, 5.0, 1.0);
+  constexpr double kTol = 0.09 * std::numbers::pi / 180.0;
+  Orientation smooth_axis = Tilted10();
+  smooth_axis.axis_tolerance_rad = kTol;
+  StrategySpec spec;
+  spec.stepover_mm = 6.0;
+  spec.max_passes = 4;
+  const auto exact = strategies::BuildPasses(surface, bull, Tilted10(), spec);
+  const auto smooth = strategies::BuildPasses(surface, bull, smooth_axis, spec);
+  ASSERT_EQ(smooth.passes.size(), exact.passes.size());
+  ASSERT_EQ(smooth.unreachable.size(), exact.unreachable.size());
+  EXPECT_GE(smooth.unreachable.size(), 4u);  // the valleys' floors are left out
+  for (std::size_t k = 0; k < smooth.passes.size(); ++k) {
+    EXPECT_NEAR(smooth.passes[k]->Length().value(), exact.passes[k]->Length().value(), 0.05) << k;
+  }
+  double worst = 0.0;
+  ForPosesAlong(
+      smooth, 0.0, 1e-3,
+      [&](const strategies::SurfacePass&, const PathSample& smp,
+          const strategies::ContactPoint& c) {
+        worst = std::max(
+            worst, geometry::Angle(smp.pose.axis, strategies::ToolAxis(smooth_axis, c.n, c.feed)));
+      });
+  EXPECT_LE(worst, kTol);
+  EXPECT_GT(worst, 0.2 * kTol);
+  ExpectToolAboveFace(face, bull, smooth, 0.0, 0.1);
+  for (const auto& pass : smooth.passes) {
+    const PathSample end = pass->At(pass->Start(), pass->Length().value());
+    strategies::ContactPoint c;
+    ASSERT_EQ(pass->Evaluate(end.state, &c), strategies::EvalStatus::kOk);
+    EXPECT_GT(SampledClearance(face, bull, end.pose, c.uv, c.n), -1e-6) << pass->Index();
+    ASSERT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+    EXPECT_GT(SampledClearance(face, bull, pass->StartPose(), c.uv, c.n), -1e-6) << pass->Index();
+  }
+  ExpectRidesAboveFace(face, bull, smooth);
+  const auto xyzac =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyzac.toml"));
+  interp::VpopOptions opt;
+  opt.feed_mm_s = 50.0;
+  opt.planner = interp::PlannerKind::kLookAhead;
+  const test::Planned planned = test::PlanAndVerify(*smooth.passes[1], *xyzac, opt);
+  EXPECT_TRUE(planned.report.Passed()) << interp::FormatReport(planned.report);
+  EXPECT_NEAR(planned.points.back().s, smooth.passes[1]->Length().value(), 1e-6);
 }
 
 // `faces` written as a STEP file named `name`.stp in the scratch folder, each face named as given,

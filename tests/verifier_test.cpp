@@ -51,6 +51,34 @@ TEST(Verifier, MeasuresJerkOfAKnownSequence) {
   EXPECT_FALSE(r.Passed());
 }
 
+// Jerk chatter: a period whose jerk has the other sign than the one before, both beyond half the
+// limit. A stretch S (one switch from +0.8 J to -0.8 J, twenty periods alternating +-0.8 J, twenty
+// alternating +-0.4 J, rest between) and S, -S, -S, S from rest to rest: 4 x 20 flips.
+TEST(Verifier, CountsThePeriodsWhoseJerkFlipsBeyondHalfTheLimit) {
+  const double dt = 1e-3, J = 5000.0;  // X's limit
+  std::vector<double> stretch;
+  const auto add = [&](int n, double j) { stretch.insert(stretch.end(), n, j); };
+  add(10, 0.8 * J), add(10, -0.8 * J), add(5, 0.0);
+  for (int k = 0; k < 20; ++k) add(1, k % 2 ? -0.8 * J : 0.8 * J);
+  add(5, 0.0);
+  for (int k = 0; k < 20; ++k) add(1, k % 2 ? -0.4 * J : 0.4 * J);
+  add(10, 0.0);
+  std::vector<double> x = {0.0, 0.0};
+  double v = 0.0, a = 0.0;
+  for (const double sign : {1.0, -1.0, -1.0, 1.0}) {
+    for (const double j : stretch) {
+      a += sign * j * dt;
+      v += a * dt;
+      x.push_back(x.back() + v * dt);
+    }
+  }
+  const auto r = Verify(Table(x, dt), *Xyz());
+  EXPECT_TRUE(r.Passed()) << FormatReport(r);
+  EXPECT_EQ(r.axes[0].jerk_flips, 80);
+  EXPECT_EQ(r.axes[1].jerk_flips, 0);
+  EXPECT_NE(FormatReport(r).find("jerk flips"), std::string::npos);
+}
+
 TEST(Verifier, DetectsJumpsPeriodsAndAxisMismatch) {
   auto t = Table({0, 0, 0, 1e-3, 1e-3, 1e-3, 1e-3}, 1e-3);
   auto r = Verify(t, *Xyz());

@@ -39,7 +39,7 @@ StreamVerifier::StreamVerifier(const Machine& machine, double period_s) : dt_(pe
   if (!(period_s > 0.0)) throw Error("setpoint period must be > 0, got {} s", period_s);
   for (const Axis& axis : machine.Axes()) {
     const double k = axis.rotary ? 180.0 / std::numbers::pi : 1.0;  // limits to file units
-    AxisState a{axis.vmax * k, axis.amax * k, axis.jmax * k, {}, {}};
+    AxisState a{axis.vmax * k, axis.amax * k, axis.jmax * k, {}, 0.0, {}};
     a.check.name = axis.name;
     axes_.push_back(a);
   }
@@ -56,6 +56,11 @@ bool StreamVerifier::Differences(long row, AxisState* a) const {
   if (std::abs(v) > c.v) c.v = std::abs(v), c.v_row = row;
   if (std::abs(acc) > c.a) c.a = std::abs(acc), c.a_row = row;
   if (std::abs(j) > c.j) c.j = std::abs(j), c.j_row = row;
+  const double half = 0.5 * a->jmax;
+  if (std::abs(j) > half && std::abs(a->last_jerk) > half && (j > 0.0) != (a->last_jerk > 0.0)) {
+    ++c.jerk_flips;
+  }
+  a->last_jerk = j;
   return std::abs(v) > a->vmax || std::abs(acc) > a->amax || std::abs(j) > a->jmax;
 }
 
@@ -126,11 +131,13 @@ VerifyReport StreamVerifier::Report() const {
 std::string FormatReport(const VerifyReport& r) {
   std::string out = fmt::format("{} setpoints, period {:.6g} ms, motion time {:.6f} s\n", r.rows,
                                 r.period_s * 1e3, r.motion_time_s);
-  out += fmt::format("{:<5} {:>10} {:>10} {:>10}   (ratio of |v|, |a|, |j| to the limit)\n", "axis",
-                     "velocity", "accel", "jerk");
+  out += fmt::format(
+      "{:<5} {:>10} {:>10} {:>10} {:>11}   (ratio of |v|, |a|, |j| to the limit; periods whose "
+      "jerk flips sign beyond half the limit)\n",
+      "axis", "velocity", "accel", "jerk", "jerk flips");
   for (const auto& c : r.axes) {
-    out += fmt::format("{:<5} {:>10.6f} {:>10.6f} {:>10.6f}\n", c.name, c.v_ratio, c.a_ratio,
-                       c.j_ratio);
+    out += fmt::format("{:<5} {:>10.6f} {:>10.6f} {:>10.6f} {:>11}\n", c.name, c.v_ratio, c.a_ratio,
+                       c.j_ratio, c.jerk_flips);
   }
   out += fmt::format("worst ratio {:.9f} ({})\n", r.worst_ratio, r.worst);
   out += fmt::format("uniform period: {}{}\n", r.uniform_period ? "yes" : "no",

@@ -236,6 +236,10 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
     if (k == "fixed") {
       spec.orientation.kind = strategies::Orientation::Kind::kFixed;
       if (o->Has("axis")) spec.orientation.axis = UnitVector(*o, "axis");
+      if (o->Has("axis_tolerance_deg")) {
+        o->Fail("axis_tolerance_deg",
+                "applies to kind = \"tilt_yaw\" (a fixed axis has nothing to smooth)");
+      }
     } else {
       spec.orientation.kind = strategies::Orientation::Kind::kTiltYaw;
       const double tilt = o->OptionalNumber("tilt_deg").value_or(0.0);
@@ -245,6 +249,13 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
       }
       spec.orientation.tilt_rad = Degrees(tilt);
       spec.orientation.yaw_rad = Degrees(yaw);
+      const double tol = o->OptionalNumber("axis_tolerance_deg").value_or(0.0);
+      if (!(tol >= 0.0 && tol <= 5.0)) {
+        o->Fail(
+            "axis_tolerance_deg",
+            fmt::format("expected an angle in [0, 5] degrees (0: the rule's axis), got {}", tol));
+      }
+      spec.orientation.axis_tolerance_rad = Degrees(tol);
     }
     o->RejectUnknown();
   }

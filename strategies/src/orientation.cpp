@@ -10,8 +10,14 @@ std::string Orientation::Describe() const {
   if (kind == Kind::kFixed) {
     return fmt::format("fixed axis ({:.6g}, {:.6g}, {:.6g})", axis.x(), axis.y(), axis.z());
   }
-  return fmt::format("tilt {:.6g} deg, yaw {:.6g} deg", tilt_rad * 180.0 / std::numbers::pi,
-                     yaw_rad * 180.0 / std::numbers::pi);
+  std::string out =
+      fmt::format("tilt {:.6g} deg, yaw {:.6g} deg", tilt_rad * 180.0 / std::numbers::pi,
+                  yaw_rad * 180.0 / std::numbers::pi);
+  if (axis_tolerance_rad > 0.0) {
+    out += fmt::format(", axis smoothed within {:.6g} deg",
+                       axis_tolerance_rad * 180.0 / std::numbers::pi);
+  }
+  return out;
 }
 
 }  // namespace dtis::strategies

@@ -10,7 +10,9 @@
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/golden_section.hpp"
+#include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/strategies/axis_law.hpp"
 
 namespace dtis::strategies {
 namespace {
@@ -91,6 +93,8 @@ class Builder {
     std::stable_sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
       return a.line != b.line ? a.line < b.line : a.order < b.order;
     });
+    // For each pass made, the stretch it rides over from the previous one (-1: none).
+    std::vector<int> ridden;
     for (const Candidate& c : found) {
       const PassEvaluator e(face_, tool_, orientation_, side_, c.constraint);
       // The pieces of the crossing between its unreachable stretches, each a pass.
@@ -116,6 +120,7 @@ class Builder {
             e, static_cast<int>(list.passes.size()) + 1, from, to, s1 - s0, spec_.newton,
             std::move(bridges), std::move(knot_lines)));
         list.passes.back()->SetRidesOverFromPrevious(rides);
+        ridden.push_back(rides ? static_cast<int>(list.unreachable.size()) - 1 : -1);
         return true;
       };
       ContactPoint from = c.start;
@@ -166,6 +171,9 @@ class Builder {
           "{:.6g}, {:.6g}): {})",
           face_.Where(), StrategySpec::KindName(spec_.kind), u.line, u.from.x(), u.from.y(),
           u.from.z(), u.why);
+    }
+    if (orientation_.kind == Orientation::Kind::kTiltYaw && orientation_.axis_tolerance_rad > 0.0) {
+      SmoothAxes(&list, ridden);
     }
     return list;
   }
@@ -628,6 +636,278 @@ class Builder {
       s += h;
       cur = next;
       h = std::min(full, 2.0 * h);
+    }
+  }
+
+  // The axis of every pass smoothed within the orientation's tolerance (AxisLaw): each pass is
+  // replaced by the same line followed with the law's axis, its cutter locations solved on the
+  // face for that axis, checked as the trace checks them. A pass whose ends no longer fit (the
+  // tool touched a second place there: a valley it rides over) is cut to where it fits; one that
+  // rode over from the previous pass is linked if the straight move between the new ends does
+  // not keep out of the face. `ridden`: for each pass, the stretch it rides over (-1: none).
+  void SmoothAxes(PassList* list, const std::vector<int>& ridden) const {
+    ContactPoint previous_end;
+    for (std::size_t k = 0; k < list->passes.size(); ++k) {
+      const SurfacePass& exact = *list->passes[k];
+      ContactPoint start, end;
+      std::unique_ptr<SurfacePass> smooth = SmoothPass(exact, &start, &end);
+      if (exact.RidesOverFromPrevious()) {
+        const bool rides = k > 0 && RidesOver(previous_end, start);
+        smooth->SetRidesOverFromPrevious(rides);
+        if (!rides && ridden[k] >= 0) {
+          list->unreachable[static_cast<std::size_t>(ridden[k])].ridden_over = false;
+        }
+      }
+      previous_end = end;
+      list->passes[k] = std::move(smooth);
+    }
+  }
+
+  // Arc length between the samples of the rule's axis a law is fitted to, mm (at most).
+  static constexpr double kAxisSampleMm = 0.04;
+  // A knot span of the law is not split below this (mm): the axis cannot be smoothed within the
+  // tolerance then.
+  static constexpr double kMinAxisSpanMm = 0.5;
+  // The fit aims at this fraction of the tolerance at its samples; the check between the
+  // smoothed pass's points holds to the whole tolerance.
+  static constexpr double kAxisFitAim = 0.8;
+
+  [[noreturn]] void FailSmoothing(const SurfacePass& pass, double s, const Eigen::Vector2d& uv,
+                                  const std::string& what) const {
+    throw Error(
+        "{}, pass {} ({}), arc length {:.6f} mm{}: [orientation] axis_tolerance_deg = "
+        "{:.6g}: {}",
+        face_.Where(), pass.Index(), pass.Evaluator().Constraint().Describe(), s,
+        std::isfinite(uv.x()) ? fmt::format(", (u, v) = ({:.9g}, {:.9g})", uv.x(), uv.y()) : "",
+        orientation_.axis_tolerance_rad * 180.0 / M_PI, what);
+  }
+
+  // The quintic law closest to the samples with knots refined (in the middle of every span
+  // where a sample is more than `aim` off) until every sample is within it.
+  AxisLaw FitLaw(const SurfacePass& pass, const std::vector<double>& s,
+                 const std::vector<Eigen::Vector3d>& axes, double aim) const {
+    std::vector<double> breaks{s.front(), s.back()};
+    for (;;) {
+      AxisLaw law = FitAxisLaw(s, axes, breaks);
+      std::vector<bool> off(breaks.size() - 1, false);
+      bool any = false;
+      std::size_t span = 0;
+      double worst = 0.0, worst_s = 0.0;
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        while (span + 2 < breaks.size() && s[i] >= breaks[span + 1]) ++span;
+        const double dev = geometry::Angle(law.At(s[i]), axes[i]);
+        if (dev > aim) off[span] = any = true;
+        if (dev > worst) worst = dev, worst_s = s[i];
+      }
+      if (!any) return law;
+      std::vector<double> refined{breaks.front()};
+      for (std::size_t j = 0; j + 1 < breaks.size(); ++j) {
+        if (off[j]) {
+          if (breaks[j + 1] - breaks[j] < 2.0 * kMinAxisSpanMm) {
+            FailSmoothing(pass, worst_s, Eigen::Vector2d::Constant(NAN),
+                          fmt::format("the rule's axis turns too abruptly here: a quintic law with "
+                                      "knots {:.3g} mm apart is still {:.3g} deg from it; give a "
+                                      "larger tolerance or 0 (the rule's axis)",
+                                      breaks[j + 1] - breaks[j], worst * 180.0 / M_PI));
+          }
+          refined.push_back(0.5 * (breaks[j] + breaks[j + 1]));
+        }
+        refined.push_back(breaks[j + 1]);
+      }
+      breaks = std::move(refined);
+    }
+  }
+
+  // `exact` with its axis smoothed (SmoothAxes); its start and end contact points in `start`
+  // and `end`.
+  std::unique_ptr<SurfacePass> SmoothPass(const SurfacePass& exact, ContactPoint* start_out,
+                                          ContactPoint* end_out) const {
+    const double length = exact.Length().value();
+    const double tol = orientation_.axis_tolerance_rad;
+    if (exact.HasBridges()) {
+      FailSmoothing(exact, 0.0, Eigen::Vector2d(exact.Start().u, exact.Start().v),
+                    "the pass crosses a pole of the face, where its axis is not smoothed; give 0");
+    }
+    // The rule's axis along the exact pass.
+    const int n = std::max(64, static_cast<int>(std::ceil(length / kAxisSampleMm)));
+    std::vector<double> ss;
+    std::vector<Eigen::Vector3d> axes;
+    PathState state = exact.Start();
+    ContactPoint exact_start, exact_end;
+    exact.Evaluate(state, &exact_start);
+    for (int i = 0; i <= n; ++i) {
+      const double s = length * i / n;
+      const PathSample smp = exact.At(state, s);
+      if (smp.status != PathStatus::kOk && smp.status != PathStatus::kEnd) {
+        FailSmoothing(exact, s, Eigen::Vector2d(state.u, state.v),
+                      DescribePathFailure(smp.status, s));
+      }
+      state = smp.state;
+      ss.push_back(s);
+      axes.push_back(smp.pose.axis);
+    }
+    exact.Evaluate(state, &exact_end);
+    const NewtonOptions& o = spec_.newton;
+    const double full = o.max_step_mm;
+    double aim = kAxisFitAim * tol;
+    for (int round = 0;; ++round) {
+      auto law = std::make_shared<AxisLaw>(FitLaw(exact, ss, axes, aim));
+      PassEvaluator e = exact.Evaluator();
+      e.SetAxisLaw(law);
+      // The start: the exact one moved across the line onto it for the law's axis (g depends on
+      // the axis for plane_cl: by a few micrometres).
+      ContactPoint cur;
+      Eigen::Vector2d uv = exact_start.uv;
+      for (int it = 0;; ++it) {
+        const EvalStatus st = e.EvaluateAt(uv, 0.0, &cur, exact_start.guide_t);
+        if (st != EvalStatus::kOk) FailSmoothing(exact, 0.0, uv, EvalStatusText(st));
+        if (std::abs(cur.g) <= o.arc_tolerance_mm) break;
+        if (it == o.max_iterations) {
+          FailSmoothing(exact, 0.0, uv, "the pass's start does not converge for the smoothed axis");
+        }
+        uv -= cur.dg * (cur.g / cur.dg.squaredNorm());
+      }
+      // March to where the tip crosses the exact end's plane across the travel.
+      std::vector<ContactPoint> points{cur};
+      std::vector<double> knot_lines;  // where the march crosses the face's knot lines
+      const auto beyond = [&](const ContactPoint& p) {
+        return (p.tip - exact_end.tip).dot(exact_end.tangent);
+      };
+      double h = full;
+      for (;;) {
+        ContactPoint next;
+        EvalStatus st = EvalStatus::kOk;
+        int its = 0;
+        if (!e.Step(cur, h, o, &next, &st, &its)) {
+          if (st == EvalStatus::kOk && h > full / 1024.0) {
+            h *= 0.5;
+            continue;
+          }
+          FailSmoothing(exact, cur.s, cur.uv,
+                        st == EvalStatus::kOk ? "the Newton solve for the smoothed axis did not "
+                                                "converge"
+                                              : EvalStatusText(st));
+        }
+        if (beyond(next) >= 0.0) {
+          // Bisection on the step for the crossing.
+          double lo = 0.0, hi = h;
+          ContactPoint p;
+          for (int k = 0; k < 60 && hi - lo > 1e-12; ++k) {
+            const double mid = 0.5 * (lo + hi);
+            if (e.Step(cur, mid, o, &p, &st, &its) && beyond(p) < 0.0) {
+              lo = mid;
+            } else {
+              hi = mid;
+              next = p;
+            }
+          }
+          if (!e.Step(cur, hi, o, &next, &st, &its)) {
+            FailSmoothing(exact, cur.s, cur.uv, "the smoothed pass's end does not converge");
+          }
+          AddKnotLines(e, cur, next, cur.s, hi, &knot_lines);
+          points.push_back(next);
+          break;
+        }
+        AddKnotLines(e, cur, next, cur.s, h, &knot_lines);
+        points.push_back(next);
+        cur = next;
+        h = std::min(full, 2.0 * h);
+        if (cur.s > 2.0 * length + 1.0) {
+          FailSmoothing(exact, cur.s, cur.uv,
+                        "the smoothed pass does not reach the exact one's end");
+        }
+      }
+      // The axis within the tolerance of the rule's at every point and halfway between them
+      // (points the law was not fitted from: its samples lie on the exact pass).
+      double worst = 0.0;
+      const ContactPoint* worst_at = &points.front();
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const double dev = geometry::Angle(points[i].axis, points[i].rule_axis);
+        if (dev > worst) worst = dev, worst_at = &points[i];
+        if (i + 1 == points.size()) break;
+        ContactPoint mid;
+        EvalStatus st;
+        int its = 0;
+        if (e.Step(points[i], 0.5 * (points[i + 1].s - points[i].s), o, &mid, &st, &its)) {
+          const double d = geometry::Angle(mid.axis, mid.rule_axis);
+          if (d > worst) worst = d;
+        }
+      }
+      if (worst > tol) {
+        if (round == 6) {
+          FailSmoothing(exact, worst_at->s, worst_at->uv,
+                        fmt::format("the smoothed axis stays {:.3g} deg from the rule's after "
+                                    "fitting its samples to {:.3g} deg; give a larger tolerance "
+                                    "or 0 (the rule's axis)",
+                                    worst * 180.0 / M_PI, aim * 180.0 / M_PI));
+        }
+        aim *= 0.7;
+        continue;
+      }
+      // The tool checked as the trace checks it; ends where it does not fit are cut off.
+      std::size_t first = 0, last = points.size() - 1;
+      while (first < points.size() && UnfitAt(points[first])) ++first;
+      if (first == points.size()) {
+        FailSmoothing(exact, 0.0, points.front().uv,
+                      "the tool fits nowhere along the pass with the smoothed axis: " +
+                          *UnfitAt(points.front()));
+      }
+      while (UnfitAt(points[last])) --last;
+      for (std::size_t i = first; i <= last; ++i) {
+        if (const auto why = UnfitAt(points[i]))
+          FailSmoothing(exact, points[i].s, points[i].uv, *why);
+      }
+      // Where the tool first (last) fits, between two points: bisection to 1/4096 of their step.
+      const auto fits_from = [&](const ContactPoint& from, double step, bool fit_at_end) {
+        double lo = 0.0, hi = step;
+        ContactPoint p, best = fit_at_end ? ContactPoint() : from;
+        EvalStatus st;
+        int its = 0;
+        bool have = false;
+        for (int k = 0; k < 12; ++k) {
+          const double mid = 0.5 * (lo + hi);
+          const bool ok = e.Step(from, mid, o, &p, &st, &its);
+          const bool fit = ok && !UnfitAt(p);
+          if (ok && fit != fit_at_end) {
+            lo = mid;
+            if (!fit_at_end) best = p;
+          } else {
+            hi = mid;
+            if (ok && fit_at_end) best = p, have = true;
+          }
+        }
+        if (fit_at_end && !have && !e.Step(from, hi, o, &best, &st, &its)) {
+          FailSmoothing(exact, from.s, from.uv, "the smoothed pass's new end does not converge");
+        }
+        return best;
+      };
+      ContactPoint start = points[first], end = points[last];
+      if (first > 0) {
+        start = fits_from(points[first - 1], points[first].s - points[first - 1].s, true);
+      }
+      if (last + 1 < points.size()) {
+        end = fits_from(points[last], points[last + 1].s - points[last].s, false);
+      }
+      const double shift = start.s, new_length = end.s - start.s;
+      if (!(new_length >= kMinPieceMm)) {
+        FailSmoothing(exact, start.s, start.uv,
+                      "the tool fits on less than a piece of the pass with the smoothed axis");
+      }
+      if (shift != 0.0) {
+        auto shifted = std::make_shared<AxisLaw>(*law);
+        shifted->SetShift(shift);
+        e.SetAxisLaw(shifted);
+      }
+      if (e.EvaluateAt(start.uv, 0.0, start_out, start.guide_t) != EvalStatus::kOk ||
+          e.EvaluateAt(end.uv, new_length, end_out, end.guide_t) != EvalStatus::kOk) {
+        FailSmoothing(exact, start.s, start.uv, "the smoothed pass's ends do not evaluate");
+      }
+      std::vector<double> knots_on_pass;
+      for (const double k : knot_lines) {
+        if (k > shift && k - shift < new_length) knots_on_pass.push_back(k - shift);
+      }
+      return std::make_unique<SurfacePass>(e, exact.Index(), *start_out, *end_out, new_length, o,
+                                           std::vector<Bridge>{}, std::move(knots_on_pass));
     }
   }
 

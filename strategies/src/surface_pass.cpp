@@ -78,8 +78,8 @@ PassEvaluator::PassEvaluator(const geometry::FaceSurface& face, const geometry::
                              const PassConstraint& constraint)
     : face_(face), tool_(tool), orientation_(orientation), side_(side), constraint_(constraint) {}
 
-EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
-                                   double guide_hint) const {
+EvalStatus PassEvaluator::EvaluateAt(const Eigen::Vector2d& uv, double at_s, ContactPoint* out,
+                                     double guide_hint) const {
   Eigen::Vector3d guide_point = Eigen::Vector3d::Zero();
   Eigen::Vector2d guide_left = Eigen::Vector2d::Zero();
   geometry::SurfaceDerivatives d;
@@ -138,7 +138,10 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
       break;
     }
   }
-  const Vec3J a = ToolAxis(orientation_, n, f);
+  const bool on_law = law_ != nullptr && std::isfinite(at_s);
+  Eigen::Vector3d law_turn = Eigen::Vector3d::Zero();  // d a / d s
+  const Vec3J a =
+      on_law ? Vec3J(law_->At(at_s, &law_turn).cast<Jet>()) : Vec3J(ToolAxis(orientation_, n, f));
   Vec3J tip;
   if (!geometry::TipFromContact(tool_, s, n, a, &tip)) {
     // Sitting flat. Where the face is flat too (a plane across the axis), the whole bottom
@@ -176,6 +179,8 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   out->n = Value(n);
   out->feed = Value(f);
   out->axis = Value(a);
+  out->s = on_law ? at_s : std::numeric_limits<double>::quiet_NaN();
+  out->rule_axis = on_law ? ToolAxis(orientation_, out->n, out->feed) : out->axis;
   out->tip = Value(tip);
   out->dp << d.su, d.sv;
   out->dtip = Gradient(tip);
@@ -189,6 +194,33 @@ EvalStatus PassEvaluator::Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
   if (w.dot(out->feed) < 0.0) perp = -perp, w = -w;
   out->duv = perp / speed;
   out->tangent = w / speed;
+  if (on_law) {
+    // The axis turns along s by law_turn, which moves the tip (and, for plane_cl, g) at a fixed
+    // contact point: the travel is uv' = q + lambda perp with g's derivative along s zero and
+    // |tip'| = 1, tip' = w0 + lambda w1.
+    const Eigen::Vector3d an = out->axis, nv = out->n;
+    Eigen::Vector3d tip_s = -tool_.corner_radius * law_turn;
+    const double big_r = tool_.TorusRadius();
+    if (big_r > 0.0) {
+      const Eigen::Vector3d side = nv - an * nv.dot(an);
+      const double norm = side.norm();
+      if (norm > geometry::kFlatContactSine) {
+        const Eigen::Vector3d u = side / norm;
+        const Eigen::Vector3d d_side = -(law_turn * nv.dot(an) + an * nv.dot(law_turn));
+        tip_s += big_r * (d_side - u * u.dot(d_side)) / norm;
+      }
+    }
+    const double g_s =
+        constraint_.kind == PassConstraint::Kind::kPlaneCl ? constraint_.normal.dot(tip_s) : 0.0;
+    const Eigen::Vector2d q = -out->dg * (g_s / out->dg.squaredNorm());
+    const Eigen::Vector3d w0 = out->dtip * q + tip_s, w1 = out->dtip * (out->duv);
+    const double aa = w1.squaredNorm(), bb = w0.dot(w1), cc = w0.squaredNorm() - 1.0;
+    const double disc = bb * bb - aa * cc;
+    if (!(disc >= 0.0) || !(aa > 0.0)) return EvalStatus::kStalled;
+    const double lambda = (-bb + std::sqrt(disc)) / aa;
+    out->duv = q + lambda * out->duv;
+    out->tangent = (w0 + lambda * w1).normalized();
+  }
   // With the normal on the tool's side: positive bends towards the tool.
   out->concave_curvature = CurvatureTowards(d, out->n);
   return EvalStatus::kOk;
@@ -219,8 +251,8 @@ bool Folded(const ContactPoint& c, EvalStatus* status) {
 
 int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* anchor_tangent,
                          double target, double anchor_guide_t, Eigen::Vector2d uv,
-                         const NewtonOptions& options, ContactPoint* out,
-                         EvalStatus* status) const {
+                         const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
+                         double s) const {
   // F1 = g; F2 = m - target, with m the chord |tip - anchor|, or with an anchor tangent the arc
   // from the chord and the two tangents. The Jacobian of the arc is the chord's scaled by
   // arc / chord: it leaves out how the tangents' angle moves, a relative term of order
@@ -231,7 +263,7 @@ int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* a
   const double f2_at_worst = anchor_tangent ? options.arc_tolerance_mm : options.tolerance_mm;
   double hint = anchor_guide_t;
   for (int it = 0;; ++it) {
-    *status = Evaluate(uv, out, hint);
+    *status = EvaluateAt(uv, s, out, hint);
     if (*status != EvalStatus::kOk) return -1;
     hint = out->guide_t;
     const Eigen::Vector3d d = out->tip - anchor;
@@ -264,14 +296,15 @@ int PassEvaluator::Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* a
 
 int PassEvaluator::SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
                               const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
-                              double anchor_guide_t) const {
-  return Solve(anchor, nullptr, chord, anchor_guide_t, uv, options, out, status);
+                              double anchor_guide_t, double s) const {
+  return Solve(anchor, nullptr, chord, anchor_guide_t, uv, options, out, status, s);
 }
 
 int PassEvaluator::SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
                             const NewtonOptions& options, ContactPoint* out,
                             EvalStatus* status) const {
-  return Solve(from.tip, &from.tangent, std::abs(delta), from.guide_t, uv, options, out, status);
+  return Solve(from.tip, &from.tangent, std::abs(delta), from.guide_t, uv, options, out, status,
+               from.s + delta);
 }
 
 bool PassEvaluator::Step(const ContactPoint& from, double delta, const NewtonOptions& options,
@@ -299,7 +332,8 @@ ContactPoint PassEvaluator::LastInside(const ContactPoint& inside, double sign, 
   while (hi - lo > kBoundaryMm) {
     const double mid = 0.5 * (lo + hi);
     const Eigen::Vector2d guess = inside.uv + inside.duv * (sign * mid);
-    if (SolveChord(inside.tip, mid, guess, options, &p, &status, inside.guide_t) >= 0 &&
+    if (SolveChord(inside.tip, mid, guess, options, &p, &status, inside.guide_t,
+                   inside.s + sign * mid) >= 0 &&
         (p.tip - inside.tip).dot(inside.tangent) * sign > 0.0 && Inside(p.uv)) {
       lo = mid;
       best = p;
@@ -441,7 +475,7 @@ EvalStatus SurfacePass::Evaluate(const PathState& state, ContactPoint* out) cons
     out->g = eval_.Constraint().normal.dot(out->tip) - eval_.Constraint().value;
     return EvalStatus::kOk;
   }
-  return eval_.Evaluate({state.u, state.v}, out, state.w);
+  return eval_.EvaluateAt({state.u, state.v}, LawS(state.s), out, state.w);
 }
 
 const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
@@ -453,7 +487,7 @@ const ContactPoint& SurfacePass::From(const PathState& state, int* slot) const {
   if (uv == start_.uv) return start_;
   if (uv == end_.uv) return end_;
   // States come from this pass, so they evaluate; if one does not, the next solve reports it.
-  eval_.Evaluate(uv, &cache_[0], state.w);
+  eval_.EvaluateAt(uv, LawS(state.s), &cache_[0], state.w);
   cache_valid_[0] = true;
   return cache_[0];
 }

@@ -29,6 +29,10 @@ struct AxisCheck {
   double v = 0.0, a = 0.0, j = 0.0;                    // largest magnitudes, file units per s^k
   double v_ratio = 0.0, a_ratio = 0.0, j_ratio = 0.0;  // to the limits
   long v_row = 0, a_row = 0, j_row = 0;                // where
+  // Jerk chatter: the periods whose jerk has the other sign than the period before's, both beyond
+  // half the limit (a bang-bang of the axis' jerk from one period to the next, which excites a
+  // machine's resonances; a planned reversal passes through smaller jerks).
+  long jerk_flips = 0;
 };
 
 struct VerifyReport {
@@ -66,6 +70,7 @@ class StreamVerifier {
   struct AxisState {
     double vmax, amax, jmax;  // file units
     double x[4];              // newest first
+    double last_jerk = 0.0;   // the period before's, file units
     AxisCheck check;
   };
   bool Differences(long row, AxisState* a) const;

@@ -20,6 +20,11 @@ struct Orientation {
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // kFixed: the unit tool axis
   double tilt_rad = 0.0;                            // kTiltYaw
   double yaw_rad = 0.0;
+  // kTiltYaw: 0 follows the rule exactly. Above 0, along each pass the axis follows a quintic law
+  // in the pass's arc length (AxisLaw) that stays within this angle of the rule everywhere: on a
+  // cubic B-spline face the normal, and the rule's axis with it, is only C1 across knot lines,
+  // and the rotary axes' accelerations would step there.
+  double axis_tolerance_rad = 0.0;
 
   std::string Describe() const;
 };

@@ -27,6 +27,7 @@
 #include "dtis/geometry/bspline_curve.hpp"
 #include "dtis/geometry/face_surface.hpp"
 #include "dtis/geometry/tool.hpp"
+#include "dtis/strategies/axis_law.hpp"
 #include "dtis/strategies/orientation.hpp"
 
 namespace dtis::strategies {
@@ -89,6 +90,10 @@ struct ContactPoint {
   // leading_line: the contact point's offset from the guide times the guide's curvature there
   // (signed, both positive to the left); 1 where the offset line folds over itself.
   double guide_fold = 0.0;
+  // With an axis law (PassEvaluator::SetAxisLaw): the pass's arc length whose axis the law gave
+  // (NaN: the orientation rule's axis), and the rule's axis here, which the law's stays near.
+  double s = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d rule_axis = Eigen::Vector3d::Zero();
 };
 
 // Surface + tool + orientation + constraint: the geometry of one pass.
@@ -100,13 +105,27 @@ class PassEvaluator {
   PassEvaluator(const PassEvaluator&) = default;
 
   // guide_hint: leading_line's closest guide parameter near this point (NaN: search the guide).
+  // The tool axis is the orientation rule's.
   EvalStatus Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
-                      double guide_hint = std::numeric_limits<double>::quiet_NaN()) const;
+                      double guide_hint = std::numeric_limits<double>::quiet_NaN()) const {
+    return EvaluateAt(uv, std::numeric_limits<double>::quiet_NaN(), out, guide_hint);
+  }
+  // With an axis law and a finite s, the tool axis is the law's at arc length s (fixed: the
+  // derivatives in (u, v) hold the axis, and the travel direction and tangent include the axis'
+  // turning along s); otherwise the rule's.
+  EvalStatus EvaluateAt(const Eigen::Vector2d& uv, double s, ContactPoint* out,
+                        double guide_hint = std::numeric_limits<double>::quiet_NaN()) const;
+  // The pass's axis follows `law` in its arc length instead of the rule (null: the rule). The
+  // solves below then carry the arc length: from a point at s, a step of delta reaches s + delta.
+  void SetAxisLaw(std::shared_ptr<const AxisLaw> law) { law_ = std::move(law); }
+  const AxisLaw* Law() const { return law_.get(); }
   // Newton: the point with g = 0 whose tip is `chord` mm from `anchor`, from `uv`. Returns the
   // iterations (updates) spent, or -1 if it did not converge; `status` says why it stopped.
+  // With an axis law, the point's axis is the law's at arc length `s`.
   int SolveChord(const Eigen::Vector3d& anchor, double chord, Eigen::Vector2d uv,
                  const NewtonOptions& options, ContactPoint* out, EvalStatus* status,
-                 double anchor_guide_t = std::numeric_limits<double>::quiet_NaN()) const;
+                 double anchor_guide_t = std::numeric_limits<double>::quiet_NaN(),
+                 double s = std::numeric_limits<double>::quiet_NaN()) const;
   // Newton: the point with g = 0 whose tip is |delta| mm of arc from `from`'s (arc from the chord
   // and the tangents, ArcFromChord), from `uv`. Iterations spent, or -1.
   int SolveArc(const ContactPoint& from, double delta, Eigen::Vector2d uv,
@@ -139,12 +158,13 @@ class PassEvaluator {
   Orientation orientation_;
   int side_;
   PassConstraint constraint_;
+  std::shared_ptr<const AxisLaw> law_;
 
   // The Newton loop of SolveChord and SolveArc: g = 0 and the chord (anchor_tangent null) or the
   // arc from the anchor equal to target.
   int Solve(const Eigen::Vector3d& anchor, const Eigen::Vector3d* anchor_tangent, double target,
             double anchor_guide_t, Eigen::Vector2d uv, const NewtonOptions& options,
-            ContactPoint* out, EvalStatus* status) const;
+            ContactPoint* out, EvalStatus* status, double s) const;
 };
 
 // The parameter of the point of `guide` closest to (x, y) in XY, by Newton from `hint` (NaN: from
@@ -215,11 +235,14 @@ class SurfacePass final : public PathSource {
   Pose EndPose() const;
   const PassEvaluator& Evaluator() const { return eval_; }
   const std::vector<double>& KnotLines() const { return knot_lines_; }
+  bool HasBridges() const { return !bridges_.empty(); }
   // The contact point of a state of this pass, for tests and reports.
   EvalStatus Evaluate(const PathState& state, ContactPoint* out) const;
 
  private:
   const ContactPoint& From(const PathState& state, int* slot) const;
+  // The arc length an axis law is evaluated at for a state at s (NaN without a law: the rule).
+  double LawS(double s) const { return eval_.Law() ? s : std::numeric_limits<double>::quiet_NaN(); }
   // The flat piece whose [s_start, s_exit] holds s (nullptr if none).
   const Bridge* BridgeAt(double s) const;
   PathSample OnBridge(const Bridge& flat, double s) const;
