@@ -304,5 +304,88 @@ if command -v chromium >/dev/null; then
   expect figures-page "page.html: the browser (" -- "$dtis" figures "$work/page.html" -o "$work/out"
 fi
 
+# Outputs that are not files: a device or a FIFO is written in place, never renamed over (as
+# root, a rename replaced /dev/null with a file); a failed write is an error naming the file,
+# leaving no other output; a job's name keeps its outputs in the current folder.
+device_kept() {  # device_kept NAME PATH TYPE(c|p)
+  checks=$((checks + 1))
+  local kept=no
+  if [ "$3" = c ]; then [ -c "$2" ] && kept=yes; else [ -p "$2" ] && kept=yes; fi
+  if [ $kept = yes ]; then
+    echo "ok $1"
+  else
+    echo "FAIL $1: $2 is no longer a $( [ "$3" = c ] && echo device || echo FIFO)"; failures=$((failures + 1))
+  fi
+}
+expect_status 0 out-devnull "" -- "$dtis" run "$work/line.toml" -o /dev/null
+device_kept out-devnull-kept /dev/null c
+expect_status 0 limiters-devnull "" -- "$dtis" run "$work/line.toml" -o "$work/kept.csv" --limiters /dev/null
+device_kept limiters-devnull-kept /dev/null c
+rm -f "$work/kept.csv"
+expect_status 0 record-devnull "" -- "$dtis" stream "$work/line.toml" --to /dev/null --record /dev/null -q
+expect_status 0 import-devnull "" -- "$dtis" machine import "$work/mikron_ucp710_xyz.toml" -o /dev/null
+device_kept import-devnull-kept /dev/null c
+if [ -c /dev/full ] && [ -w /dev/full ]; then
+  expect out-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o /dev/full
+  expect limiters-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --limiters /dev/full
+  expect record-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" stream "$work/line.toml" --to /dev/null --record /dev/full -q
+  expect import-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" machine import "$work/mikron_ucp710_xyz.toml" -o /dev/full
+  if [ -s "${DTIS_PLOTLY_JS:-$root/tools/report/node_modules/plotly.js-dist-min/plotly.min.js}" ]; then
+    expect report-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --report /dev/full
+  fi
+  device_kept devfull-kept /dev/full c
+fi
+# A FIFO stays a FIFO, and what reads it gets the setpoints.
+mkfifo "$work/setpoints.fifo"
+cat "$work/setpoints.fifo" > "$work/from_fifo.txt" &
+fifo_reader=$!
+expect_status 0 out-fifo "" -- timeout 20 "$dtis" run "$work/line.toml" -o "$work/setpoints.fifo" -q
+wait "$fifo_reader"
+device_kept out-fifo-kept "$work/setpoints.fifo" p
+checks=$((checks + 1))
+if [ "$(head -n 1 "$work/from_fifo.txt")" = "t,X,Y,Z" ] && [ "$(wc -l < "$work/from_fifo.txt")" -gt 1000 ]; then
+  echo "ok out-fifo-read"
+else
+  echo "FAIL out-fifo-read: the reader got $(wc -l < "$work/from_fifo.txt") lines"; failures=$((failures + 1))
+fi
+# A job's name places NAME.csv: never outside the current folder, never nameless.
+mkdir -p "$work/jobs/a/b"
+for case in "escape ../../out_escape" "absolute $work/out_absolute" "empty "; do
+  label=${case%% *} name=${case#* }
+  printf 'name = "%s"\n' "$name" | cat - "$work/line.toml" > "$work/jobs/name_$label.toml"
+  expect "name-$label" "name_$label.toml:1: key 'name': expected a name for the outputs (NAME.csv) inside the current folder" -- env -C "$work/jobs/a/b" "$dtis" run "$work/jobs/name_$label.toml" -q
+done
+checks=$((checks + 1))
+if [ -z "$(find "$work" -name '*.csv' -newer "$work/jobs/name_empty.toml" ! -path "$work/from_fifo.txt")" ]; then
+  echo "ok name-nothing-written"
+else
+  echo "FAIL name-nothing-written: $(find "$work" -name '*.csv' -newer "$work/jobs/name_empty.toml")"; failures=$((failures + 1))
+fi
+# --jerk-time-ms on run, stream and compare, as the job key: an INI job without MAX_JERK runs.
+if "$dtis" run "$work/ini_job.toml" --jerk-time-ms 20 -o "$work/ini_cli.csv" -q &&
+  "$dtis" verify "$work/ini_cli.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null &&
+  "$dtis" run "$work/ini_ok.toml" -o "$work/ini_key.csv" -q && cmp -s "$work/ini_cli.csv" "$work/ini_key.csv" &&
+  "$dtis" stream "$work/ini_job.toml" --jerk-time-ms 20 --to /dev/null --record "$work/ini_stream.csv" -q &&
+  "$dtis" verify "$work/ini_stream.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null; then
+  echo "ok ini-job-jerk-time-option"
+else
+  echo "FAIL ini-job-jerk-time-option"; failures=$((failures + 1))
+fi
+checks=$((checks + 1))
+expect run-jerk-time-toml "--jerk-time-ms: only used with a LinuxCNC INI machine" -- "$dtis" run "$work/line.toml" --jerk-time-ms 20 -o "$work/out.csv"
+expect_usage compare-jerk-time-negative "--jerk-time-ms" -- "$dtis" compare "$work/line.toml" --jerk-time-ms -1
+# Where a G-code program starts: --from on run, for G-code jobs only.
+printf 'G21 G90\nG1 X10 F600\nM2\n' > "$work/first_cut.ngc"
+printf 'machine = "mikron_ucp710_xyz.toml"\n[path]\nkind = "gcode"\nfile = "first_cut.ngc"\ninterpreter = "dtis"\n' > "$work/first_cut.toml"
+expect run-from-not-gcode "--from: $work/line.toml is not a G-code job" -- "$dtis" run "$work/line.toml" --from 0,0,0 -o "$work/out.csv"
+expect run-from-count "--from: 2 values; machine" -- "$dtis" run "$work/first_cut.toml" --from 0,0 -o "$work/out.csv"
+checks=$((checks + 1))
+if "$dtis" run "$work/first_cut.toml" --from -5,0,0 -o "$work/first_cut.csv" 2>"$work/first_cut.err" &&
+  grep -q "path 15 mm" "$work/first_cut.err" && grep -q "1 contour, 0 rapids" "$work/first_cut.err"; then
+  echo "ok run-from-plans-the-first-cut"
+else
+  echo "FAIL run-from-plans-the-first-cut: $(cat "$work/first_cut.err")"; failures=$((failures + 1))
+fi
+
 echo "$((checks - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

@@ -1,7 +1,16 @@
 // Job and curve files: every malformed input names its file, line and key.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+#include <thread>
 
 #include "dtis/core/error.hpp"
+#include "dtis/io/atomic_file.hpp"
 #include "dtis/io/curve_file.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
@@ -92,6 +101,111 @@ TEST(SetpointFile, RoundTripsExactly) {
   EXPECT_EQ(back.columns, t.columns);
   ExpectError([] { ParseSetpoints("t,X\n0,1\n0.001,x\n", "s.csv"); },
               "s.csv:3: column 2 ('X') is not a finite number");
+}
+
+// The outputs a job does not name are NAME.csv: a name that would place them outside the current
+// folder, or leave them nameless (".csv"), is refused as [output] paths are.
+TEST(JobFile, ANameKeepsTheOutputsInTheCurrentFolder) {
+  for (const std::string name : {"../../escape", "/tmp/escape", "a/../../escape", "", "sub/"}) {
+    SCOPED_TRACE(name);
+    ExpectError([&] { ParseJob("name = \"" + name + "\"\n" + kJob, "j.toml"); },
+                {"j.toml:1: key 'name': expected a name for the outputs (NAME.csv) inside the "
+                 "current folder",
+                 "got '" + name + "'"});
+  }
+  EXPECT_EQ(ParseJob("name = \"runs/today\"\n" + kJob, "j.toml").name, "runs/today");
+}
+
+std::string FileText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// A FIFO is written in place, not renamed over: it stays a FIFO and its reader gets the text.
+TEST(AtomicFile, WritesAFifoInPlace) {
+  const std::string fifo = test::Scratch("atomic.fifo");
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string read;
+  std::thread reader([&] { read = FileText(fifo); });
+  {
+    AtomicFile out(fifo);  // opens when the reader does
+    EXPECT_TRUE(out.InPlace());
+    out.Write("t,X\n0,1\n");
+    out.Commit();
+  }
+  reader.join();
+  EXPECT_EQ(read, "t,X\n0,1\n");
+  struct stat st {};
+  ASSERT_EQ(::stat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode));
+  // Nothing was left beside it.
+  for (const auto& e :
+       std::filesystem::directory_iterator(std::filesystem::path(fifo).parent_path())) {
+    EXPECT_EQ(e.path().filename().string().find(".atomic.fifo.tmp"), std::string::npos);
+  }
+}
+
+// A device's failed write is an error naming it; /dev/null stays a device. A regular output
+// committed together with it is not left behind.
+TEST(AtomicFile, ADevicesFailedWriteIsAnErrorAndLeavesNothing) {
+  struct stat st {};
+  if (::stat("/dev/full", &st) != 0 || !S_ISCHR(st.st_mode) || ::access("/dev/full", W_OK) != 0) {
+    GTEST_SKIP() << "no writable /dev/full";
+  }
+  const std::string regular = test::Scratch("with_full.csv");
+  std::filesystem::remove(regular);
+  ExpectError(
+      [&] {
+        AtomicFile a(regular), b("/dev/full");
+        a.Write("t,X\n");
+        b.Write("t,X\n");
+        CommitTogether({&a, &b});
+      },
+      "/dev/full: write failed (No space left on device)");
+  EXPECT_FALSE(std::filesystem::exists(regular));
+  {
+    AtomicFile out("/dev/null");
+    EXPECT_TRUE(out.InPlace());
+    out.Write("nothing\n");
+    out.Commit();
+  }
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  // A regular target is still replaced atomically.
+  {
+    AtomicFile out(regular);
+    EXPECT_FALSE(out.InPlace());
+    out.Write("x\n");
+    out.Commit();
+  }
+  EXPECT_EQ(FileText(regular), "x\n");
+}
+
+// A G-code job says where the machine is and which work offsets are in force: its [path] from,
+// LinuxCNC's parameter file, and [path.work_offsets] over the file's.
+TEST(JobFile, GcodeStartAndWorkOffsets) {
+  const std::string var = test::Scratch("job_sim.var");
+  std::ofstream(var) << "5220\t1.000000\n5221\t10.000000\n5241\t20.000000\n";
+  const std::string head = "machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n";
+  const Job job =
+      ParseJob(head + "from = [0, 0, 50]\nparameters = \"" + var +
+                   "\"\n[path.work_offsets]\nG55 = [1, 2, 3]\n\"G59.3\" = [4, 5, 6, 7, 8, 9]\n",
+               "j.toml");
+  EXPECT_EQ(job.path.gcode.from, (std::vector<double>{0, 0, 50}));
+  const auto& p = job.path.gcode.parameters;
+  EXPECT_EQ(p.at(5221), 10.0);  // the file's G54
+  EXPECT_EQ(p.at(5241), 1.0);   // G55 from the job, over the file's 20
+  EXPECT_EQ(p.at(5243), 3.0);
+  EXPECT_EQ(p.at(5244), 0.0);  // no A given: 0
+  EXPECT_EQ(p.at(5381), 4.0);
+  EXPECT_EQ(p.at(5386), 9.0);
+  ExpectError([&] { ParseJob(head + "[path.work_offsets]\nG60 = [1, 2, 3]\n", "j.toml"); },
+              "key 'path.work_offsets.G60': expected a coordinate system, G54 to G59");
+  ExpectError([&] { ParseJob(head + "[path.work_offsets]\nG54 = [1, 2]\n", "j.toml"); },
+              "key 'path.work_offsets.G54': expected [X, Y, Z] (mm) or [X, Y, Z, A, B, C]");
+  ExpectError([&] { ParseJob(head + "from = [1, 2]\n", "j.toml"); },
+              "key 'path.from': expected where the machine is");
 }
 
 }  // namespace

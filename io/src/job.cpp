@@ -12,6 +12,7 @@
 #include <future>
 #include <mutex>
 #include <numbers>
+#include <optional>
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/toml_reader.hpp"
@@ -67,6 +68,45 @@ void ReadCompare(TomlTable& root, Job* job) {
   t->RejectUnknown();
 }
 
+// Where a G-code program starts and the offsets it starts with, as LinuxCNC holds them: the
+// machine's position (`from`), its parameter file (`parameters`) and work offsets given in the job
+// ([path.work_offsets], over the file's).
+void ReadGcodeStart(TomlTable& path, const std::string& job_file, GcodeOptions* gcode) {
+  if (path.Has("from")) {
+    gcode->from = path.Numbers("from");
+    if (gcode->from.size() < 3 || gcode->from.size() > 6) {
+      path.Fail("from", fmt::format("expected where the machine is, [X, Y, Z] (mm) or with its "
+                                    "rotary axes (degrees), got {} values",
+                                    gcode->from.size()));
+    }
+  }
+  if (auto file = path.OptionalString("parameters")) {
+    gcode->parameters = ReadParameterFile(ResolveRelative(job_file, *file));
+  }
+  if (auto offsets = path.OptionalTable("work_offsets")) {
+    for (const std::string& key : offsets->Keys()) {
+      int system = 0;
+      for (int n = 1; n <= 9; ++n) {
+        if (key == CoordinateSystemName(n)) system = n;
+      }
+      if (system == 0) {
+        offsets->Fail(key, "expected a coordinate system, G54 to G59 or \"G59.1\" to \"G59.3\"");
+      }
+      const std::vector<double> v = offsets->Numbers(key);
+      if (v.size() != 3 && v.size() != 6) {
+        offsets->Fail(key, fmt::format("expected [X, Y, Z] (mm) or [X, Y, Z, A, B, C] (mm, "
+                                       "degrees), got {} values",
+                                       v.size()));
+      }
+      for (std::size_t k = 0; k < 6; ++k) {
+        gcode->parameters[WorkOffsetParameter(system) + static_cast<int>(k)] =
+            k < v.size() ? v[k] : 0.0;
+      }
+    }
+    offsets->RejectUnknown();
+  }
+}
+
 void ReadPath(TomlTable& root, Job* out) {
   Job& job = *out;
   TomlTable path = root.Table("path");
@@ -99,6 +139,7 @@ void ReadPath(TomlTable& root, Job* out) {
       job.path.gcode.window_blocks = static_cast<std::size_t>(*w);
     }
     if (path.Has("tool_axis")) path.Fail("tool_axis", "a G-code program sets its own tool axis");
+    ReadGcodeStart(path, job.file, &job.path.gcode);
     path.RejectUnknown();
     return;
   }
@@ -312,10 +353,24 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   return spec;
 }
 
+// The name places the outputs a job does not name (NAME.csv): inside the current folder, as
+// [output] paths are, and never empty (".csv").
+void CheckJobName(TomlTable& root, const std::string& name) {
+  const std::filesystem::path p(name);
+  bool up = false;
+  for (const auto& part : p) up = up || part == "..";
+  if (name.empty() || p.is_absolute() || up || !p.has_filename()) {
+    root.Fail("name", fmt::format("expected a name for the outputs (NAME.csv) inside the current "
+                                  "folder (not empty, not absolute, no '..'), got '{}'",
+                                  name));
+  }
+}
+
 Job ReadJob(TomlTable& root) {
   Job job;
   job.file = root.File();
   job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
+  if (root.Has("name")) CheckJobName(root, job.name);
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
   if (auto t = root.OptionalPositiveNumber("machine_jerk_time_ms")) {
     if (!kinematics::IsLinuxcncIni(job.machine_file)) {
@@ -848,8 +903,14 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   }
   ProgressMeter meter(options);
   meter.Phase("reading G-code");
+  GcodeStart start;
+  try {
+    start = GcodeStartOf(job.path.gcode, *r->machine);
+  } catch (const Error& e) {
+    throw Error("{}: [path] {}", job.file, e.what());
+  }
   const GcodeProgram program =
-      ReadGcode(job.path.gcode_file, job.path.gcode.interpreter, job.path.gcode.tool_table);
+      ReadGcode(job.path.gcode_file, job.path.gcode.interpreter, job.path.gcode.tool_table, start);
   r->blocks = static_cast<int>(program.moves.size());
   r->gcode_notes = program.notes;
   meter.Phase("building contours");
@@ -954,10 +1015,18 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   return r;
 }
 
+// "1 contour", "2 contours".
+std::string Count(long n, std::string_view what) {
+  return fmt::format("{} {}{}", n, what, n == 1 ? "" : "s");
+}
+
 std::string FormatRunSummary(const Job& job, const RunResult& r) {
-  std::string out =
-      fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name,
-                  InterpolatorName(job.interpolator), r.machine->Name(), r.path_length_mm);
+  // The planner that ran (`--planner` names it so), or the Taylor interpolator.
+  const std::string planner = job.interpolator == InterpolatorKind::kVpop
+                                  ? fmt::format("{} planner", interp::PlannerName(job.vpop.planner))
+                                  : InterpolatorName(job.interpolator);
+  std::string out = fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name, planner,
+                                r.machine->Name(), r.path_length_mm);
   if (job.surface) {
     out += fmt::format("surface          {} {}, {}, {}, {}\n", job.surface->step_file,
                        DescribeFaces(*job.surface), job.surface->tool.Describe(),
@@ -980,9 +1049,9 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
                        r.vpop.evaluations);
   }
   if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
-    out +=
-        fmt::format("program          {}: {} moves, {} contours, {} rapids, {} smoothed corners\n",
-                    job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
+    out += fmt::format("program          {}: {}, {}, {}, {}\n", job.path.gcode_file,
+                       Count(r.blocks, "move"), Count(r.chains, "contour"),
+                       Count(r.rapids, "rapid"), Count(r.corners, "smoothed corner"));
     out += fmt::format("interpreter      {}\n", GcodeInterpreterName(job.path.gcode.interpreter));
     if (const auto& tools = job.path.gcode.tool_table) {
       out += fmt::format("tool table       {}: {} tool{}, G43 offsets applied\n", tools->file,
@@ -1081,15 +1150,16 @@ void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setp
   if (!keep_failed && !FitToWrite(job, r)) {
     throw Error("{}: {} not written", UnfitMessage(job, r), setpoints_path);
   }
+  std::optional<AtomicFile> limiters;
   if (!limiters_path.empty()) {
-    AtomicFile out(limiters_path);
-    out.Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
-    // Both files land together or not at all: commit the setpoints first, they matter most.
-    WriteSetpoints(setpoints_path, r.table);
-    out.Commit();
-    return;
+    limiters.emplace(limiters_path);
+    limiters->Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
   }
-  WriteSetpoints(setpoints_path, r.table);
+  SetpointWriter setpoints(setpoints_path, r.table.axes);
+  WriteSetpointRows(r.table, &setpoints);
+  // Both files land together or not at all: the setpoints first, they matter most, unless the
+  // limiter report goes to a device or a FIFO, which cannot be taken back.
+  CommitTogether({&setpoints.Finish(), limiters ? &*limiters : nullptr});
 }
 
 }  // namespace dtis::io

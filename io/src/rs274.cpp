@@ -86,7 +86,7 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
 }
 
 Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
-                         Cancel* cancel)
+                         Cancel* cancel, const GcodeStart& start)
     : file_(path) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
@@ -110,9 +110,20 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
   // The interpreter's own chatter (missing parameter file, Python) is not the program's.
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  // dtis-rs274 PROGRAM [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: the table as read and checked
-  // here.
-  std::vector<std::string> args = {program, path};
+  // dtis-rs274 PROGRAM -s X,Y,Z,A,B,C [-p N=V,...] [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: where
+  // the machine is, the parameters, and the table as read and checked here.
+  std::vector<std::string> args = {
+      program, path, "-s",
+      fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", start.tip.x(), start.tip.y(),
+                  start.tip.z(), start.rotary[0], start.rotary[1], start.rotary[2])};
+  if (!start.parameters.empty()) {
+    std::string list;
+    for (const auto& [number, value] : start.parameters) {
+      list += fmt::format("{}{}={:.17g}", list.empty() ? "" : ",", number, value);
+    }
+    args.push_back("-p");
+    args.push_back(list);
+  }
   if (tools) {
     args.push_back("-t");
     for (const ToolEntry& t : tools->tools) {

@@ -26,11 +26,12 @@ std::string Rs274Program();
 class Rs274Reader {
  public:
   // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
-  // number exists, without offsets). Throws dtis::Error when the file cannot be read or
-  // dtis-rs274 cannot be started. `cancel` (which must outlive the reader), once requested, kills
-  // the interpreter: Next() then throws.
+  // number exists, without offsets), from where `start` says the machine is and with its
+  // parameters (the work offsets). Throws dtis::Error when the file cannot be read or dtis-rs274
+  // cannot be started. `cancel` (which must outlive the reader), once requested, kills the
+  // interpreter: Next() then throws.
   explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr,
-                       Cancel* cancel = nullptr);
+                       Cancel* cancel = nullptr, const GcodeStart& start = {});
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running

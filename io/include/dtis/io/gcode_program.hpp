@@ -5,14 +5,16 @@
 //
 // Coordinates: X Y Z are the tool tip in the workpiece frame and the rotary words A B C are the
 // machine's rotary axes, which set the tool axis through the machine's forward kinematics (TCP
-// programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts at the
-// end of its first move (the positioning move). A chain ends, and the machine comes to rest,
+// programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts where
+// the machine is (GcodeOptions::from, by default the origin), as LinuxCNC runs it: its first move
+// is planned from there. A chain ends, and the machine comes to rest,
 // between rapids and feed moves, at a change of feed or of G64 tolerance, after every block under
 // G61 or G61.1, at a dwell, a junction with an arc that is not tangent, or a reversal.
 #pragma once
 
 #include <array>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -47,7 +49,25 @@ struct GcodeOptions {
   // and dropped behind the planner (geometry::G1Path::Window), so that memory does not grow with
   // it; 0: every chain whole. BuildGcodePlan (dtis run) holds every chain whole.
   std::size_t window_blocks = 4096;
+  // Where the machine is as the program starts, in the program's frame (as LinuxCNC's display
+  // shows it): the tip X Y Z (mm), then the machine's rotary axes (degrees), or X Y Z alone (rotary
+  // axes at 0); empty: the origin, where LinuxCNC's sim configurations home. The first move is
+  // planned from there.
+  std::vector<double> from;
+  // Instead: the program starts at the end of its first move, which is not planned (`dtis
+  // compare`'s exports, whose first move goes to the first pass, where the exact path starts).
+  bool start_at_first_move = false;
+  // LinuxCNC's numbered parameters the program starts with (GcodeStart::parameters): a parameter
+  // file's, then the job's work offsets.
+  std::map<int, double> parameters;
 };
+
+// `options`' start on `machine`: where its tip is and its rotary words, and the parameters.
+// Throws dtis::Error "from: ..." when `from` has neither 3 values nor one per axis of the machine.
+GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine);
+// GcodeOptions::from for the machine at axis positions `q` (planner units): its tip through the
+// forward kinematics, and its rotary axes.
+std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine);
 
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
 std::array<int, 3> RotaryWordAxes(const Machine& machine);
@@ -148,6 +168,7 @@ class GcodeSegments {
   double rapid_feed_ = 0.0;
   bool started_ = false, ended_ = false;
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d start_tip_ = Eigen::Vector3d::Zero();
   // The chain being gathered: its moves (only a window's worth in scan mode or once it is
   // windowed), where it starts, its feed, its last move and where that started.
   std::vector<geometry::ChainMove> chain_;
