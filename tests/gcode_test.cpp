@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -16,9 +17,9 @@
 namespace dtis::io {
 namespace {
 
-std::string ErrorOf(const std::string& text) {
+std::string ErrorOf(const std::string& text, const GcodeReadOptions& options = {}) {
   try {
-    ParseGcode(text, "p.ngc");
+    ParseGcode(text, "p.ngc", options);
   } catch (const Error& e) {
     return e.what();
   }
@@ -128,6 +129,32 @@ TEST(Gcode, ReaderReportsABadBlockWhenItReachesIt) {
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "p.ngc:3:7: word 'Q' is not supported");
+  }
+}
+
+// dtis' reader reads at most max_blocks lines, naming the first one past them, and stops when
+// asked to.
+TEST(Gcode, ReadingIsBoundedAndCanBeStopped) {
+  const std::string three = "G0 X0\nG1 X1 F100\nG1 X2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 3;
+  o.remedy = "raise it";
+  EXPECT_EQ(ParseGcode(three, "p.ngc", o).moves.size(), 3u);
+  EXPECT_EQ(ParseGcode(three + "M2\n", "p.ngc", o).moves.size(), 3u);  // empty at the end
+  EXPECT_EQ(ErrorOf(three + "G1 X3\nM2\n", o),
+            "p.ngc:4: the program runs more than 3 blocks (each repetition of a loop counted), "
+            "the most it may run here; raise it");
+  std::atomic<bool> stop{false};
+  o.max_blocks = 0;
+  o.cancel = &stop;
+  GcodeReader reader(std::string_view(three), "p.ngc", o);
+  ASSERT_TRUE(reader.Next());
+  stop = true;
+  try {
+    reader.Next();
+    FAIL() << "not stopped";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "p.ngc: reading stopped after line 1");
   }
 }
 

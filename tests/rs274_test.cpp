@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -11,6 +13,7 @@
 #include <memory>
 #include <numbers>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -380,6 +383,46 @@ TEST(Rs274Records, ReadIntoMovesOrAClearError) {
            {"D 3 -1\nX\n", "p.ngc:3: a dwell (G4) of -1 s: expected 0 to 1e6 s"}}) {
     test::ExpectError([&] { ParseRs274Records(record, "p.ngc"); }, message);
   }
+}
+
+// A loop that never ends, with or without moves, ends at max_blocks blocks executed (each
+// repetition counted), at the line the interpreter was on; a cancel stops a read while the
+// interpreter computes without writing anything.
+TEST_F(Rs274, LoopsEndAtTheBlockBudgetAndReadsCanBeStopped) {
+  const std::string moving = test::Scratch("loop_moving.ngc");
+  std::ofstream(moving) << "G21 G90\nG0 X0 Y0\no100 while [1]\nG1 X10 F600\nG1 X0\n"
+                           "o100 endwhile\nM2\n";
+  const std::string still = test::Scratch("loop_still.ngc");
+  std::ofstream(still) << "G21 G90\nG0 X0 Y0\nG1 X10 F600\no100 while [1]\no100 endwhile\nM2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 1000;
+  o.remedy = "the remedy";
+  for (const std::string& file : {moving, still}) {
+    test::ExpectError([&] { ReadGcode(file, GcodeInterpreter::kRs274ngc, nullptr, o); },
+                      {"the program runs more than 1000 blocks (each repetition of a loop "
+                       "counted), the most it may run here; the remedy"});
+  }
+  test::ExpectError([&] { ReadGcode(still, GcodeInterpreter::kRs274ngc, nullptr, o); },
+                    "loop_still.ngc:5: the program runs more than 1000 blocks");
+  // A program within the budget reads whole.
+  EXPECT_EQ(ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc, nullptr, o).moves.size(),
+            ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc).moves.size());
+
+  std::atomic<bool> stop{false};
+  GcodeReadOptions endless;
+  endless.max_blocks = 0;
+  endless.cancel = &stop;
+  GcodeReader reader(still, GcodeInterpreter::kRs274ngc, nullptr, endless);
+  ASSERT_TRUE(reader.Next().has_value());  // G0
+  ASSERT_TRUE(reader.Next().has_value());  // G1
+  std::thread stopper([&stop] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    stop = true;
+  });
+  const auto start = std::chrono::steady_clock::now();
+  test::ExpectError([&] { reader.Next(); }, "loop_still.ngc: reading stopped");
+  stopper.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(3));
 }
 
 }  // namespace

@@ -86,6 +86,12 @@ class GcodeReader::Blocks {
       if (!std::isalpha(static_cast<unsigned char>(c))) {
         Fail(column, fmt::format("expected a word (a letter and a number), got '{}'", c));
       }
+      if (letter == 'O') {
+        Fail(
+            column,
+            "O-words (subroutines, loops, conditionals) are not read by dtis' reader; read the "
+            "program with LinuxCNC's interpreter (interpreter = \"rs274ngc\" in the job's [path])");
+      }
       ++i;
       while (i < n && (text[i] == ' ' || text[i] == '\t')) ++i;
       // A number: [+-] digits [. digits], NGC style (".5", "5.", "-0.25").
@@ -292,11 +298,18 @@ class GcodeReader::Blocks {
   std::array<bool, 3> uses_rotary_{};
 };
 
+std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOptions& options) {
+  return fmt::format(
+      "{}:{}: the program runs more than {} blocks (each repetition of a loop counted), the most "
+      "it may run here{}",
+      file, line, options.max_blocks, options.remedy.empty() ? "" : "; " + options.remedy);
+}
+
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
-                         std::shared_ptr<const ToolTable> tools)
-    : blocks_(std::make_unique<Blocks>(path)) {
+                         std::shared_ptr<const ToolTable> tools, const GcodeReadOptions& options)
+    : options_(options), blocks_(std::make_unique<Blocks>(path)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools));
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), options);
     return;
   }
   if (tools) {
@@ -310,8 +323,9 @@ GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
   if (!*in_) throw Error("{}: cannot open the G-code file", path);
 }
 
-GcodeReader::GcodeReader(std::string_view text, const std::string& source_name)
-    : blocks_(std::make_unique<Blocks>(source_name)), text_(text) {}
+GcodeReader::GcodeReader(std::string_view text, const std::string& source_name,
+                         const GcodeReadOptions& options)
+    : options_(options), blocks_(std::make_unique<Blocks>(source_name)), text_(text) {}
 
 GcodeReader::~GcodeReader() = default;
 
@@ -328,6 +342,10 @@ const std::vector<std::pair<std::string, int>>& GcodeReader::Notes() const {
 std::optional<GcodeMove> GcodeReader::Next() {
   if (rs274_) return rs274_->Next();
   while (!ended_) {
+    if (options_.cancel != nullptr && options_.cancel->load(std::memory_order_relaxed)) {
+      ended_ = true;
+      throw Error("{}: reading stopped after line {}", File(), line_);
+    }
     std::string_view l;
     if (in_) {
       if (!std::getline(*in_, line_text_)) break;
@@ -340,6 +358,10 @@ std::optional<GcodeMove> GcodeReader::Next() {
       offset_ = end == std::string_view::npos ? text_.size() + 1 : end + 1;
     }
     if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    if (options_.max_blocks > 0 && line_ >= options_.max_blocks) {
+      ended_ = true;
+      throw Error("{}", TooManyBlocks(File(), line_ + 1, options_));
+    }
     if (!blocks_->Line(l, ++line_)) ended_ = true;
     if (std::optional<GcodeMove> move = blocks_->TakeMove()) return move;
   }
@@ -362,8 +384,9 @@ GcodeProgram ReadAll(Reader& reader) {
 
 }  // namespace
 
-GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
-  GcodeReader reader(text, source_name);
+GcodeProgram ParseGcode(std::string_view text, const std::string& source_name,
+                        const GcodeReadOptions& options) {
+  GcodeReader reader(text, source_name, options);
   return ReadAll(reader);
 }
 
@@ -373,8 +396,8 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
 }
 
 GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
-                       std::shared_ptr<const ToolTable> tools) {
-  GcodeReader reader(path, interpreter, std::move(tools));
+                       std::shared_ptr<const ToolTable> tools, const GcodeReadOptions& options) {
+  GcodeReader reader(path, interpreter, std::move(tools), options);
   return ReadAll(reader);
 }
 

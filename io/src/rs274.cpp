@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -85,8 +86,9 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
   return interpreter == GcodeInterpreter::kRs274ngc ? "rs274ngc" : "dtis";
 }
 
-Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools)
-    : file_(path) {
+Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
+                         const GcodeReadOptions& options)
+    : file_(path), options_(options) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
     throw Error("{}: cannot open the G-code file: {}", path, std::strerror(errno));
@@ -109,9 +111,13 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
   // The interpreter's own chatter (missing parameter file, Python) is not the program's.
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  // dtis-rs274 PROGRAM [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: the table as read and checked
-  // here.
+  // dtis-rs274 PROGRAM [-n MAX_BLOCKS] [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: the table as
+  // read and checked here.
   std::vector<std::string> args = {program, path};
+  if (options.max_blocks > 0) {
+    args.push_back("-n");
+    args.push_back(std::to_string(options.max_blocks));
+  }
   if (tools) {
     args.push_back("-t");
     for (const ToolEntry& t : tools->tools) {
@@ -132,16 +138,19 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
     pid_ = -1;
     throw Error("{}: cannot start {}: {}", path, program, std::strerror(spawned));
   }
-  out_ = ::fdopen(pipe_fds[0], "r");
-  if (out_ == nullptr) {
-    ::close(pipe_fds[0]);
-    Reap();
-    throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
-  }
+  out_ = pipe_fds[0];
 }
 
 Rs274Reader::Rs274Reader(std::string_view records, const std::string& name)
     : file_(name), text_(records) {}
+
+void Rs274Reader::CheckCancel() {
+  if (options_.cancel == nullptr || !options_.cancel->load(std::memory_order_relaxed)) return;
+  ended_ = true;
+  if (pid_ > 0) ::kill(pid_, SIGKILL);
+  Reap();
+  throw Error("{}: reading stopped", file_);
+}
 
 bool Rs274Reader::NextRecord() {
   record_.clear();
@@ -152,20 +161,37 @@ bool Rs274Reader::NextRecord() {
     text_->remove_prefix(end == std::string_view::npos ? text_->size() : end + 1);
     return true;
   }
-  char buffer[4096];
-  bool got = false;
-  while (std::fgets(buffer, sizeof buffer, out_) != nullptr) {
-    got = true;
-    record_ += buffer;
-    if (record_.back() == '\n') break;
+  for (;;) {
+    const std::size_t end = pending_.find('\n', taken_);
+    if (end != std::string::npos || (output_ended_ && taken_ < pending_.size())) {
+      const std::size_t stop = end == std::string::npos ? pending_.size() : end;
+      record_.assign(pending_, taken_, stop - taken_);
+      taken_ = end == std::string::npos ? stop : stop + 1;
+      return true;
+    }
+    if (output_ended_) return false;
+    pending_.erase(0, taken_);
+    taken_ = 0;
+    CheckCancel();
+    if (options_.cancel != nullptr) {
+      // The interpreter may compute for long without a move (a loop): look at the flag meanwhile.
+      pollfd p{out_, POLLIN, 0};
+      if (::poll(&p, 1, 100) == 0) continue;
+    }
+    char buffer[65536];
+    const ssize_t n = ::read(out_, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      output_ended_ = true;
+      continue;
+    }
+    pending_.append(buffer, static_cast<std::size_t>(n));
   }
-  if (!record_.empty() && record_.back() == '\n') record_.pop_back();
-  return got;
 }
 
 Rs274Reader::~Rs274Reader() {
   if (pid_ > 0) ::kill(pid_, SIGKILL);
-  if (out_ != nullptr) std::fclose(out_);
+  if (out_ >= 0) ::close(out_);
   if (pid_ > 0) {
     int status = 0;
     while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
@@ -265,6 +291,11 @@ std::optional<GcodeMove> Rs274Reader::Next() {
     switch (kind) {
       case 'E':
         Fail(static_cast<int>(line), std::string(f.Rest()));
+      case 'B': {  // the interpreter ran max_blocks blocks and was stopped
+        ended_ = true;
+        Reap();
+        throw Error("{}", TooManyBlocks(file_, line, options_));
+      }
       case 'I':
         Note(std::string(f.Rest()));
         continue;

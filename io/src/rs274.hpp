@@ -5,7 +5,6 @@
 #include <sys/types.h>
 
 #include <array>
-#include <cstdio>
 #include <memory>
 #include <optional>
 #include <string>
@@ -22,12 +21,18 @@ namespace dtis::io {
 // put it; empty when none is found.
 std::string Rs274Program();
 
+// "<file>:<line>: the program runs more than N blocks ...; <remedy>"
+// (GcodeReadOptions::max_blocks).
+std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOptions& options);
+
 class Rs274Reader {
  public:
   // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
   // number exists, without offsets). Throws dtis::Error when the file cannot be read or
   // dtis-rs274 cannot be started.
-  explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr);
+  // `options`: the interpreter stops after max_blocks blocks executed; a cancel stops the read.
+  explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr,
+                       const GcodeReadOptions& options = {});
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running
@@ -53,9 +58,16 @@ class Rs274Reader {
   // The next record into record_; false at the end of the output.
   bool NextRecord();
 
+  // Throws when options_.cancel is set.
+  void CheckCancel();
+
   std::string file_;
+  GcodeReadOptions options_;
   pid_t pid_ = -1;
-  std::FILE* out_ = nullptr;
+  int out_ = -1;           // the interpreter's output
+  std::string pending_;    // read from it, not yet taken as records
+  std::size_t taken_ = 0;  // of pending_
+  bool output_ended_ = false;
   std::optional<std::string_view> text_;  // records given as text, what is left of them
   std::string record_;
   long records_ = 0;

@@ -4,7 +4,10 @@
 // which is GPL-2: it is a separate program so that the dtis library keeps its own licence, and so
 // that an interpreter failure cannot take the planner (or a machine it feeds) down with it.
 //
-//   dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
+//   dtis-rs274 PROGRAM.ngc [-n MAX_BLOCKS] [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
+//
+// With -n, the interpreter executes at most MAX_BLOCKS blocks (each repetition of a loop and each
+// block of a called subroutine counted), so that a loop that never ends ends here.
 //
 // The arguments after -t are a tool table (dtis reads and checks the user's file, in mm
 // and degrees, io/src/tool_table.cpp); with one, G43/G43.2/G49 offsets move the controlled point
@@ -28,6 +31,7 @@
 //   D <line> seconds                         dwell (G4)
 //   I <line> what                            a call that moves nothing (spindle, coolant, tool)
 //   E <line> message                         the interpreter's error; the last record
+//   B <line>                                 -n MAX_BLOCKS blocks were executed; the last record
 //   X                                        the program's end; the last record
 // Exit status: 0 after X, 1 after E, 2 on bad usage.
 #include <unistd.h>
@@ -495,11 +499,24 @@ bool ReadTool(const char* text, CANON_TOOL_TABLE* entry) {
 int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
-                 "usage: dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n");
+                 "usage: dtis-rs274 PROGRAM.ngc [-n MAX_BLOCKS] "
+                 "[-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n");
     return 2;
   }
-  tool_table_given = argc > 2 && std::strcmp(argv[2], "-t") == 0;
-  for (int i = tool_table_given ? 3 : argc; i < argc; ++i) {
+  // -n: the most blocks the interpreter executes (loops and calls counted), then "B line".
+  long max_blocks = 0;
+  int next = 2;
+  if (argc > next + 1 && std::strcmp(argv[next], "-n") == 0) {
+    char* end = nullptr;
+    max_blocks = std::strtol(argv[next + 1], &end, 10);
+    if (end == argv[next + 1] || *end != '\0' || max_blocks < 1) {
+      std::fprintf(stderr, "dtis-rs274: -n '%s' is not a number of blocks\n", argv[next + 1]);
+      return 2;
+    }
+    next += 2;
+  }
+  tool_table_given = argc > next && std::strcmp(argv[next], "-t") == 0;
+  for (int i = tool_table_given ? next + 1 : argc; i < argc; ++i) {
     CANON_TOOL_TABLE entry;
     if (!ReadTool(argv[i], &entry)) {
       std::fprintf(stderr, "dtis-rs274: '%s' is not TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D\n", argv[i]);
@@ -507,8 +524,8 @@ int main(int argc, char** argv) {
     }
     tools.push_back(entry);
   }
-  if (argc > 2 && !tool_table_given) {
-    std::fprintf(stderr, "dtis-rs274: expected -t before the tool table, got '%s'\n", argv[2]);
+  if (argc > next && !tool_table_given) {
+    std::fprintf(stderr, "dtis-rs274: expected -n or -t, got '%s'\n", argv[next]);
     return 2;
   }
   // The interpreter reads the INI a LinuxCNC session names in the environment (its subroutine
@@ -554,7 +571,12 @@ int main(int argc, char** argv) {
   }
   status = interp->open(program.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
-  for (;;) {
+  for (long blocks = 0;; ++blocks) {
+    if (max_blocks > 0 && blocks == max_blocks) {
+      std::printf("B %d\n", current_line);
+      std::fflush(stdout);
+      std::_Exit(1);
+    }
     status = interp->read();
     if (status == INTERP_ENDFILE) break;
     if (status > INTERP_MIN_ERROR) return fail(status);

@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <iosfwd>
 #include <memory>
@@ -74,6 +75,26 @@ struct GcodeProgram {
   std::vector<std::pair<std::string, int>> notes;
 };
 
+// Bounds on reading a program, so that one that does not end (an O-word loop, with or without
+// moves) or is longer than its reader may hold is an error naming its line, never a read that
+// does not end.
+struct GcodeReadOptions {
+  // The most blocks read, each repetition of a loop counted (LinuxCNC's interpreter: blocks
+  // executed, subroutine calls and loops included); 0: no limit. Going past it throws
+  // dtis::Error "<file>:<line>: the program runs more than N blocks ...".
+  long max_blocks = kDefaultMaxBlocks;
+  // Set from any thread to stop a read: Next() then throws dtis::Error "<file>: reading
+  // stopped". Looked at before every block, and at least every 0.1 s while LinuxCNC's
+  // interpreter computes without writing a move. nullptr: never stopped.
+  const std::atomic<bool>* cancel = nullptr;
+  // Added to the message when max_blocks is passed: what the user can do about it.
+  std::string remedy;
+  // A bound on loops that never end, for a reader that holds nothing (a stream): 100 million
+  // blocks take dtis' reader under a minute. What a reader that holds the program takes is
+  // bounded by the job ([path] max_blocks).
+  static constexpr long kDefaultMaxBlocks = 100'000'000;
+};
+
 // A program read one move at a time, in constant memory (a line and the modal state), for programs
 // too long to hold: Next() throws dtis::Error "<file>:<line>:<column>: ..." at a bad block.
 class GcodeReader {
@@ -83,9 +104,11 @@ class GcodeReader {
   // that follow, as LinuxCNC does; without one, G43 is noted and the programmed tip is planned.
   explicit GcodeReader(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
-                       std::shared_ptr<const ToolTable> tools = nullptr);
+                       std::shared_ptr<const ToolTable> tools = nullptr,
+                       const GcodeReadOptions& options = {});
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
-  GcodeReader(std::string_view text, const std::string& source_name);
+  GcodeReader(std::string_view text, const std::string& source_name,
+              const GcodeReadOptions& options = {});
   ~GcodeReader();
   GcodeReader(const GcodeReader&) = delete;
   GcodeReader& operator=(const GcodeReader&) = delete;
@@ -100,6 +123,7 @@ class GcodeReader {
 
  private:
   class Blocks;
+  GcodeReadOptions options_;
   std::unique_ptr<Blocks> blocks_;
   std::unique_ptr<Rs274Reader> rs274_;  // LinuxCNC's interpreter, when it reads
   std::unique_ptr<std::ifstream> in_;   // the file; without one, text_ from offset_
@@ -113,8 +137,10 @@ class GcodeReader {
 // The whole program. Throws dtis::Error "<file>:<line>:<column>: ..." on the first bad block.
 GcodeProgram ReadGcode(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
-                       std::shared_ptr<const ToolTable> tools = nullptr);
-GcodeProgram ParseGcode(std::string_view text, const std::string& source_name);
+                       std::shared_ptr<const ToolTable> tools = nullptr,
+                       const GcodeReadOptions& options = {});
+GcodeProgram ParseGcode(std::string_view text, const std::string& source_name,
+                        const GcodeReadOptions& options = {});
 // The records dtis-rs274 writes (tools/rs274/dtis_rs274.cpp), as they would be read from it: for
 // tests and the fuzz target. Throws dtis::Error on the interpreter's error or a bad record.
 GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name);
