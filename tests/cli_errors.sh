@@ -353,9 +353,9 @@ if [ "$rs274" = rs274 ]; then
 fi
 # Surfaces: strategy lines bounded before any is traced.
 sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 0.000001/' "$work/surf.toml" > "$work/finestep.toml"
-bounded_case 1 tiny-stepover "finestep.toml:13: key 'strategy.stepover_mm': 1.66e+07 strategy lines, 1e-06 mm apart across [-9.40694, 7.16983] mm along the plane normal, more than the 100000 a face is traced with" -- "$dtis" run "$work/finestep.toml" -o "$work/out.csv"
+bounded_case 1 tiny-stepover "finestep.toml:13: key 'strategy.stepover_mm': 1.66e+07 strategy lines, 1e-06 mm apart across [-9.40694, 7.16983] mm along the plane normal, more than the 10000 a face is traced with" -- "$dtis" run "$work/finestep.toml" -o "$work/out.csv"
 sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [-1e300, 1e300]/' "$work/surf.toml" > "$work/hugerange.toml"
-bounded_case 1 huge-range "hugerange.toml:14: key 'strategy.range': 1e+300 strategy lines, 2 mm apart across the range [-1e+300, 1e+300] mm, more than the 100000 a face is traced with" -- "$dtis" run "$work/hugerange.toml" -o "$work/out.csv"
+bounded_case 1 huge-range "hugerange.toml:14: key 'strategy.range': 1e+300 strategy lines, 2 mm apart across the range [-1e+300, 1e+300] mm, more than the 10000 a face is traced with" -- "$dtis" run "$work/hugerange.toml" -o "$work/out.csv"
 # Nonsense refused, naming the key and what was expected.
 printf '[interpolator]\nend_tolerance_mm = 1e6\n' | cat "$work/line.toml" - > "$work/endtol.toml"
 bounded_case 1 end-tolerance "endtol.toml:8: key 'interpolator.end_tolerance_mm': expected a distance up to 0.01 mm, got 1e+06" -- "$dtis" run "$work/endtol.toml" -o "$work/out.csv"

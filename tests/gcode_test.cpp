@@ -140,7 +140,7 @@ TEST(Gcode, ReadingIsBoundedAndCanBeStopped) {
   o.max_blocks = 3;
   o.remedy = "raise it";
   EXPECT_EQ(ParseGcode(three, "p.ngc", o).moves.size(), 3u);
-  EXPECT_EQ(ParseGcode(three + "M2\n", "p.ngc", o).moves.size(), 3u);  // empty at the end
+  EXPECT_EQ(ParseGcode(three + "\n\n", "p.ngc", o).moves.size(), 3u);  // empty lines: no blocks
   EXPECT_EQ(ErrorOf(three + "G1 X3\nM2\n", o),
             "p.ngc:4: the program runs more than 3 blocks (each repetition of a loop counted), "
             "the most it may run here; raise it");

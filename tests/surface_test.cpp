@@ -654,7 +654,7 @@ TEST(SurfaceErrors, TooManyLinesAreRefusedNamingTheKey) {
   spec.stepover_key = "j.toml:9: key 'strategy.stepover_mm'";
   const std::string fine = BuildError(kStrip, 1, Ball(1.0), spec);
   EXPECT_EQ(fine.rfind("j.toml:9: key 'strategy.stepover_mm': ", 0), 0u) << fine;
-  EXPECT_NE(fine.find("more than the 100000 a face is traced with"), std::string::npos) << fine;
+  EXPECT_NE(fine.find("more than the 10000 a face is traced with"), std::string::npos) << fine;
   StrategySpec wide;
   wide.stepover_mm = 2.0;
   wide.range = std::array<double, 2>{-1e300, 1e300};

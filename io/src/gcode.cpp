@@ -358,7 +358,8 @@ std::optional<GcodeMove> GcodeReader::Next() {
       offset_ = end == std::string_view::npos ? text_.size() + 1 : end + 1;
     }
     if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
-    if (options_.max_blocks > 0 && line_ >= options_.max_blocks) {
+    // Lines with something on them count (a text's last newline ends no empty block).
+    if (!l.empty() && options_.max_blocks > 0 && ++blocks_read_ > options_.max_blocks) {
       ended_ = true;
       throw Error("{}", TooManyBlocks(File(), line_ + 1, options_));
     }

@@ -124,6 +124,7 @@ class GcodeReader {
  private:
   class Blocks;
   GcodeReadOptions options_;
+  long blocks_read_ = 0;  // lines that were not empty
   std::unique_ptr<Blocks> blocks_;
   std::unique_ptr<Rs274Reader> rs274_;  // LinuxCNC's interpreter, when it reads
   std::unique_ptr<std::ifstream> in_;   // the file; without one, text_ from offset_
