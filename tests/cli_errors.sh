@@ -347,7 +347,7 @@ bounded_case 1 while-loop-dtis "bad.ngc:2:1: O-words (subroutines, loops, condit
 if [ "$rs274" = rs274 ]; then
   bounded_case 1 while-loop-moves "the program runs more than 200000 blocks (each repetition of a loop counted)" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
   printf 'G0 X0 Y0\nG1 X10 F600\no100 while [1]\no100 endwhile\nM2\n' > "$work/bad.ngc"
-  bounded_case 1 while-loop-still "bad.ngc:4: the program runs more than 200000 blocks (each repetition of a loop counted)" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+  bounded_case 1 while-loop-still "bad.ngc:3: the program runs more than 200000 blocks (each repetition of a loop counted)" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
   printf 'G0 X0 Y0\nG1 X10 F600\nG4 P100000\nG1 X20\nM2\n' > "$work/bad.ngc"
   bounded_case 1 long-dwell "bad.ngc:4: the program takes at least 27.8 h up to this block, more than the 24 h a job may take; this block alone takes 27.8 h: a dwell (G4) of 100000 s before it" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
 fi

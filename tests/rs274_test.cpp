@@ -403,7 +403,7 @@ TEST_F(Rs274, LoopsEndAtTheBlockBudgetAndReadsCanBeStopped) {
                        "counted), the most it may run here; the remedy"});
   }
   test::ExpectError([&] { ReadGcode(still, GcodeInterpreter::kRs274ngc, nullptr, o); },
-                    "loop_still.ngc:4: the program runs more than 1000 blocks");
+                    "loop_still.ngc:5: the program runs more than 1000 blocks");
   // A program within the budget reads whole.
   EXPECT_EQ(ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc, nullptr, o).moves.size(),
             ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc).moves.size());

@@ -31,7 +31,7 @@
 //   D <line> seconds                         dwell (G4)
 //   I <line> what                            a call that moves nothing (spindle, coolant, tool)
 //   E <line> message                         the interpreter's error; the last record
-//   B <line>                                 -n MAX_BLOCKS blocks were executed; the last record
+//   B <line>                                 the block after MAX_BLOCKS executed (-n); the last record
 //   X                                        the program's end; the last record
 // Exit status: 0 after X, 1 after E, 2 on bad usage.
 #include <unistd.h>
@@ -571,16 +571,16 @@ int main(int argc, char** argv) {
   }
   status = interp->open(program.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
-  for (long blocks = 0;; ++blocks) {
-    if (max_blocks > 0 && blocks == max_blocks) {
-      std::printf("B %d\n", current_line);
-      std::fflush(stdout);
-      std::_Exit(1);
-    }
+  for (long blocks = 1;; ++blocks) {
     status = interp->read();
     if (status == INTERP_ENDFILE) break;
     if (status > INTERP_MIN_ERROR) return fail(status);
     current_line = interp->sequence_number();
+    if (max_blocks > 0 && blocks > max_blocks) {  // the first block past them, not executed
+      std::printf("B %d\n", current_line);
+      std::fflush(stdout);
+      std::_Exit(1);
+    }
     status = interp->execute();
     if (status == INTERP_EXIT) break;
     if (status > INTERP_MIN_ERROR) return fail(status);
