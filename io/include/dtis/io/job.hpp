@@ -167,7 +167,7 @@ struct RunOptions {
 // 2 sqrt(L / A) and (32 L / J)^(1/3)), with a Taylor interpolator's ramps (2 accel_time_s), or
 // in `program_least_s` (a G-code program's GcodePlan::least_time_s).
 void CheckMotionBound(const Job& job, double length_mm, double program_least_s = 0.0);
-// CheckMotionBound, and for `dtis run`, which holds every setpoint (about 200 bytes each), no
+// CheckMotionBound, and for `dtis run`, which holds every setpoint (about 300 bytes each), no
 // more than kMaxRunSetpoints setpoints at the job's period.
 void CheckRunBound(const Job& job, double length_mm, double program_least_s = 0.0);
 
