@@ -470,11 +470,6 @@ Job ParseJob(std::string_view text, const std::string& source_name) {
   return ReadJob(root);
 }
 
-namespace {
-
-// The planner sizes each axis' limits down by what rounding the written positions costs
-// (interp::ShortestPeriods): a period too short for that, or limits (times limit_fraction) too
-// small for the period, is refused here naming the key to change.
 void CheckPeriod(const Job& job, const Machine& machine) {
   const double dt = job.vpop.period_s, f = job.vpop.limit_fraction;
   static constexpr const char* kWhat[] = {"velocity", "acceleration", "jerk"};
@@ -514,12 +509,14 @@ void CheckPeriod(const Job& job, const Machine& machine) {
     }
     throw Error(
         "{}: axis {}'s {} limit ({:g} {}) is too small to plan at any period up to {:g} "
-        "ms: {}; check the machine's limits",
-        job.machine_file, a.name, kWhat[k], limit, unit, kMaxPeriodMs, why);
+        "ms: {}; check {}",
+        job.machine_file, a.name, kWhat[k], limit, unit, kMaxPeriodMs, why,
+        kinematics::IsLinuxcncIni(job.machine_file)
+            ? fmt::format("[AXIS_{}] and its joint's MAX_{}", a.name,
+                          std::array{"VELOCITY", "ACCELERATION", "JERK"}[k])
+            : fmt::format("key 'axes.{}.{}'", a.name, kWhat[k]));
   }
 }
-
-}  // namespace
 
 std::unique_ptr<Machine> LoadJobMachine(const Job& job) {
   auto machine = kinematics::LoadMachineFile(job.machine_file, job.machine_options);

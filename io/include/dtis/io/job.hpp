@@ -111,8 +111,13 @@ inline constexpr long kMaxCommitHorizon = 1L << 30;
 // motion streams (`dtis stream`), in constant memory.
 inline constexpr long kMaxRunSetpoints = 10'000'000;
 
-// The job's machine, read with the job's machine options.
+// The job's machine, read with the job's machine options, and CheckPeriod'ed.
 std::unique_ptr<Machine> LoadJobMachine(const Job& job);
+// The planner plans each axis' limits down by what rounding the written positions costs
+// (interp::ShortestPeriods): throws dtis::Error naming the key to change (period_ms,
+// [interpolator] limit_fraction, or the machine's axis limit) with the shortest period or least
+// fraction that plans, when the job's period is too short for `machine`.
+void CheckPeriod(const Job& job, const Machine& machine);
 
 // Throws dtis::Error naming the file, line and key.
 Job LoadJob(const std::string& path);
