@@ -129,6 +129,12 @@ def main():
             sys.exit(f"cost.py: {tool} not found (Debian: apt install valgrind)")
     if not os.path.exists(args.dtis):
         sys.exit(f"cost.py: {args.dtis} not found (build dtis first)")
+    # `dtis` is a launcher that runs dtis-main next to it (cli/launcher.cpp), which callgrind would
+    # not follow: profile dtis-main itself.
+    shown = args.dtis
+    program = os.path.join(os.path.dirname(args.dtis) or ".", "dtis-main")
+    if os.path.basename(args.dtis) == "dtis" and os.path.isfile(program):
+        args.dtis = program
     for job in args.jobs:
         if not os.path.exists(job):
             sys.exit(f"cost.py: {job} not found")
@@ -138,7 +144,7 @@ def main():
         results = list(pool.map(lambda t: measure(args.dtis, *t), tasks))
     rows = [(job, planner, per, n) for (job, planner), (per, n) in zip(tasks, results)]
     command = "python3 bench/cost.py --dtis " + " ".join(
-        [args.dtis] + (["--planner", args.planner] if args.planner else []) + args.jobs)
+        [shown] + (["--planner", args.planner] if args.planner else []) + args.jobs)
     text = render(rows, command)
     print(text, end="")
     if args.update:

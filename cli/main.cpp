@@ -17,6 +17,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <utility>
 
@@ -34,6 +35,7 @@
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
+#include "stop_signals.hpp"
 
 namespace {
 
@@ -284,39 +286,104 @@ const std::string kStreamToHelp =
         "HAL's streamer.N") +
     (dtis::io::NativeHalBuilt() ? "" : " (hal:N not in this build: no linuxcnc-uspace-dev)");
 
-// Set by SIGINT, SIGTERM or SIGHUP: a stream then ends with its stop to rest, a daemon shuts down
-// the same way.
+// Set by a stop signal: a stream then ends with its stop to rest, a daemon shuts down the same
+// way.
 std::atomic<bool> g_interrupted{false};
 std::atomic<int> g_signal{0};
-extern "C" void OnInterrupt(int sig) {
+
+// The stop signals: every signal whose default action ends the process and that can be caught
+// (SIGKILL cannot; SIGSTOP and SIGTSTP only suspend it). The ones a fault raises (SIGSEGV,
+// SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS, SIGABRT) stop the machine when another process sends
+// them, and keep their default action when dtis itself raised them. SIGPIPE is among them
+// until a stream or daemon ignores it (a reader gone is then a write error, reported).
+struct StopSignals {
+  static constexpr int kMax = dtis::cli::kMaxSignal;
+  std::array<struct sigaction, kMax> old{};
+  std::array<bool, kMax> caught{};
+  bool installed = false;
+};
+StopSignals g_stop_signals;
+
+extern "C" void OnStopSignal(int sig, siginfo_t* info, void* /*context*/) {
+  if (dtis::cli::IsFaultSignal(sig) &&
+      (info == nullptr || info->si_code > 0 || info->si_pid == getpid())) {
+    // A fault of dtis itself (or abort()): its default action, at once.
+    struct sigaction fatal {};
+    fatal.sa_handler = SIG_DFL;
+    sigemptyset(&fatal.sa_mask);
+    sigaction(sig, &fatal, nullptr);
+    if (info == nullptr || info->si_code <= 0) raise(sig);
+    return;  // a hardware fault happens again, now with the default action
+  }
   g_signal = sig;
   g_interrupted = true;
 }
 
-// The stop signals are caught from the first line of main, so that one that comes while a
-// stream's job loads is kept, even where the parent shell ignores SIGINT (as for `cmd &`).
-// Commands that feed no machine get the signals' dispositions back after the command line is
-// read, and a signal caught until then takes effect as it would have.
-class StopSignals {
- public:
-  StopSignals() {
-    struct sigaction stop {};
-    stop.sa_handler = OnInterrupt;
-    sigemptyset(&stop.sa_mask);
-    for (std::size_t k = 0; k < kSignals.size(); ++k) sigaction(kSignals[k], &stop, &old_[k]);
+// Caught before anything else runs: from the executable's .preinit_array, before the shared
+// libraries initialise, so that a signal that comes while the program starts or a stream's job
+// loads is kept, even where the parent shell ignores SIGINT (as for `cmd &`). Signals the parent
+// ignores are caught too: dtis feeds a machine. (While the dynamic loader relocates the libraries,
+// before this runs, the launcher keeps them blocked.)
+void CatchStopSignals(char** envp) {
+  StopSignals& s = g_stop_signals;
+  if (s.installed) return;
+  s.installed = true;
+  struct sigaction stop {};
+  stop.sa_sigaction = OnStopSignal;
+  stop.sa_flags = SA_SIGINFO;
+  sigemptyset(&stop.sa_mask);
+  dtis::cli::ForEachStopSignal([&](int sig) {
+    if (sig < StopSignals::kMax) s.caught[sig] = sigaction(sig, &stop, &s.old[sig]) == 0;
+  });
+  // The launcher (`dtis`, cli/launcher.cpp) blocked them while this program's libraries loaded:
+  // caught now, they are unblocked, and one that came meanwhile is delivered here. (From the
+  // .preinit_array, before the C library sets `environ` up: read from `envp`.)
+  const std::string_view name = dtis::cli::kBlockedByLauncher;
+  for (char** e = envp; e != nullptr && *e != nullptr; ++e) {
+    const std::string_view var = *e;
+    if (var.size() <= name.size() || var.substr(0, name.size()) != name ||
+        var[name.size()] != '=') {
+      continue;
+    }
+    sigset_t set;
+    sigemptyset(&set);
+    const char* blocked = *e + name.size() + 1;
+    for (char* end = nullptr;; blocked = end + 1) {
+      const long sig = std::strtol(blocked, &end, 10);
+      if (end == blocked) break;
+      if (sig > 0 && sig < StopSignals::kMax && s.caught[sig])
+        sigaddset(&set, static_cast<int>(sig));
+      if (*end != ',') break;
+    }
+    sigprocmask(SIG_UNBLOCK, &set, nullptr);
   }
-  // For a stream or a daemon: keep catching them; a reader gone is a write error, reported.
-  static void Keep() { std::signal(SIGPIPE, SIG_IGN); }
-  // For every other command.
-  void Release() {
-    for (std::size_t k = 0; k < kSignals.size(); ++k) sigaction(kSignals[k], &old_[k], nullptr);
-    if (const int sig = g_signal.load(); sig != 0) std::raise(sig);
-  }
+}
+extern "C" void DtisCatchStopSignalsFirst(int, char**, char** envp) { CatchStopSignals(envp); }
+[[gnu::used, gnu::section(".preinit_array")]] void (*const kCatchStopSignalsFirst)(
+    int, char**, char**) = DtisCatchStopSignalsFirst;
 
- private:
-  static constexpr std::array<int, 3> kSignals{SIGINT, SIGTERM, SIGHUP};
-  std::array<struct sigaction, 3> old_{};
-};
+// For a stream or a daemon: keep catching them; a reader gone is a write error, reported.
+void KeepStopSignals() { std::signal(SIGPIPE, SIG_IGN); }
+
+// Commands that feed no machine get the signals' dispositions back once the command line is
+// read, and a signal caught until then takes effect as it would have.
+void ReleaseStopSignals() {
+  StopSignals& s = g_stop_signals;
+  for (int sig = 1; sig < StopSignals::kMax; ++sig) {
+    if (s.caught[sig]) sigaction(sig, &s.old[sig], nullptr);
+  }
+  if (const int sig = g_signal.load(); sig != 0) std::raise(sig);
+}
+
+// "SIGQUIT", for messages.
+std::string SignalName(int sig) {
+  if (sig == SIGRTMIN) return "SIGRTMIN";
+  if (sig == SIGRTMAX) return "SIGRTMAX";
+  if (sig > SIGRTMIN && sig <= SIGRTMAX) return fmt::format("SIGRTMIN+{}", sig - SIGRTMIN);
+  const char* abbrev = sigabbrev_np(sig);
+  return abbrev ? fmt::format("SIG{}", abbrev) : fmt::format("signal {}", sig);
+}
+
 struct StreamArgs {
   std::string job, to = "-", record, report, pace = "auto", from, planner;
   long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
@@ -399,7 +466,7 @@ class StreamOutput {
 };
 
 int Stream(const StreamArgs& a) {
-  StopSignals::Keep();
+  KeepStopSignals();
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   ApplyPlanner(a.planner, &job);
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
@@ -437,6 +504,13 @@ int Stream(const StreamArgs& a) {
   dtis::io::StreamResult r;
   try {
     r = stream.Run(*segments, output.Cnc(), record ? &*record : nullptr);
+  } catch (const dtis::Error& e) {
+    finished = true;
+    watcher.join();
+    // The output failed (its reader died): what was sent is recorded, the evidence.
+    if (!stream.Recorded()) throw;
+    throw dtis::Error("{}; the {} setpoints sent until then are recorded in {}", e.what(),
+                      stream.Status().rows.load(), a.record);
   } catch (...) {
     finished = true;
     watcher.join();
@@ -458,6 +532,7 @@ int Stream(const StreamArgs& a) {
   if (!a.quiet) {
     std::fprintf(stderr, "stream           %s after %ld setpoints (%ld of them the stop to rest)\n",
                  dtis::io::StreamEndName(r.end), r.rows, r.stop_rows);
+    if (g_interrupted) std::fprintf(stderr, "stopped by       %s\n", SignalName(g_signal).c_str());
     if (!r.error.empty()) std::fprintf(stderr, "planner error    %s\n", r.error.c_str());
     std::fprintf(stderr, "segments         %d planned, pace %s, buffer %ld periods, horizon %ld\n",
                  r.segments, o.realtime ? "real time" : "as fast as the output takes",
@@ -505,7 +580,7 @@ std::string DefaultSocket() {
 }
 
 int Serve(const ServeArgs& a) {
-  StopSignals::Keep();
+  KeepStopSignals();
   dtis::io::ServeOptions o;
   o.stop = &g_interrupted;
   o.socket_path = a.socket.empty() ? DefaultSocket() : a.socket;
@@ -525,7 +600,10 @@ int Serve(const ServeArgs& a) {
   };
   dtis::io::Serve(o, output.Cnc());
   output.Close();
-  if (g_interrupted) std::fputs("dtis serve: stopped by a signal, the machine at rest\n", stderr);
+  if (g_interrupted) {
+    std::fprintf(stderr, "dtis serve: stopped by %s, the machine at rest\n",
+                 SignalName(g_signal).c_str());
+  }
   return 0;
 }
 
@@ -637,7 +715,8 @@ int Faces(const std::string& file) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  StopSignals stop_signals;
+  CatchStopSignals(environ);                // done already, unless the .preinit_array was not run
+  unsetenv(dtis::cli::kBlockedByLauncher);  // not for the programs dtis runs
   CLI::App app{
       "dtis: axis setpoints at a fixed period, every axis within its velocity, acceleration and "
       "jerk limits (VPOp, Beudaert et al. 2012)."};
@@ -768,9 +847,11 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand(
       "stream",
       "Plan a job and hand each setpoint over as soon as it is final, as lines for LinuxCNC's "
-      "halstreamer (one per period: the axes in mm and degrees). Aborted (SIGINT/SIGTERM), starved "
-      "or failed streams end with a stop to rest within every axis limit. Exit 0: complete; 5: "
-      "ended early at rest; 3: the stream failed the verifier; 1: bad input.");
+      "halstreamer (one per period: the axes in mm and degrees). Aborted (SIGINT, SIGTERM or any "
+      "other signal that would end dtis; SIGKILL cannot be caught), starved or failed streams end "
+      "with a stop to rest within every axis limit. Exit 0: complete; 5: ended early at rest; 3: "
+      "the stream failed the verifier; 1: bad input, or the output's reader died (what was sent "
+      "is recorded).");
   StreamArgs sa;
   stream->add_option("JOB", sa.job, "job file (see samples/jobs/)")->required();
   stream->add_option("--to", sa.to, kStreamToHelp)->capture_default_str();
@@ -816,7 +897,9 @@ int main(int argc, char** argv) {
   auto* serve = app.add_subcommand(
       "serve",
       "Stay up and stream jobs submitted over a local socket to one CNC, one after the other, each "
-      "linked from where the previous one left the machine (see `dtis send`).");
+      "linked from where the previous one left the machine (see `dtis send`). SIGTERM, SIGINT or "
+      "any other signal that would end it (not SIGKILL) is a shutdown: the job's stop to rest, its "
+      "recording written, the socket removed.");
   ServeArgs va;
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
@@ -855,7 +938,7 @@ int main(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : kExitUsage;
   }
-  if (!*stream && !*serve) stop_signals.Release();
+  if (!*stream && !*serve) ReleaseStopSignals();
   try {
     if (*report) return Report(ra);
     if (*figures) return Figures(figures_report, figures_dir, fo, figures_quiet);
@@ -878,6 +961,10 @@ int main(int argc, char** argv) {
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dtis: internal error: %s (please report it with the job)\n", e.what());
+    return kExitInternal;
+  } catch (...) {
+    std::fputs("dtis: internal error: an unknown exception (please report it with the job)\n",
+               stderr);
     return kExitInternal;
   }
   return 0;

@@ -12,11 +12,15 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <thread>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/gcode.hpp"
+#include "dtis/io/serve_request.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "fixture_shapes.hpp"
@@ -405,6 +409,131 @@ TEST(Stream, RowByRowVerifierMatchesTheDefinition) {
     EXPECT_EQ(r.rows, n);
     EXPECT_FALSE(r.ends_at_rest);  // noise on every row
     EXPECT_EQ(r.Passed(), r.worst_ratio <= 1.0 && r.starts_at_rest && r.ends_at_rest);
+  }
+}
+
+// A job read from a G-code program written for the test (in the scratch folder).
+io::Job ProgramJob(const std::string& name, const std::string& program) {
+  std::ofstream(test::Scratch(name + ".ngc")) << program;
+  std::ofstream(test::Scratch(name + ".toml"))
+      << fmt::format("machine = \"{}\"\n[path]\nkind = \"gcode\"\nfile = \"{}.ngc\"\n",
+                     test::Source("samples/machines/mikron_ucp710_xyz.toml"), name);
+  return io::LoadJob(test::Scratch(name + ".toml"));
+}
+
+// A program whose moves take more than the 24 h a job may is refused before anything moves,
+// naming the block where its least time (at its F words) passed the bound: moves of 100 mm at
+// 1 mm/min take 100 min each, the 15th passes 24 h. 14 of them (23 h 20 min) are accepted.
+TEST(Stream, ProgramLongerThanADayIsRefusedAtItsBlock) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const auto program = [](int moves) {
+    std::string text = "G21 G90 G94\nG1 X0 Y0 Z0 F1000\n";
+    for (int k = 0; k < moves; ++k) text += fmt::format("G1 X{} F1\n", k % 2 == 0 ? 100 : 0);
+    return text + "M2\n";
+  };
+  test::ExpectError([&] { io::JobSegments(ProgramJob("day_long", program(15)), *machine); },
+                    {"day_long.ngc:17:", "more than the 24 h a job may take"});
+  EXPECT_NO_THROW(io::JobSegments(ProgramJob("day_short", program(14)), *machine));
+}
+
+// A cancelled read throws the reason given, before it reads and while LinuxCNC's interpreter
+// runs a program that loops without a move (and so without a record to read): it is stopped.
+TEST(Stream, CancelledJobSegmentsThrowTheReason) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  io::Cancel before;
+  before.Request("the daemon is shutting down");
+  test::ExpectError(
+      [&] { io::JobSegments(SampleJob("lock"), *machine, std::nullopt, 5.0, &before); },
+      "the daemon is shutting down");
+  if (io::DefaultGcodeInterpreter() != io::GcodeInterpreter::kRs274ngc) {
+    GTEST_SKIP() << "built without LinuxCNC's interpreter";
+  }
+  const io::Job idle = ProgramJob(
+      "idle_loop", "G21 G90 G94\n#1 = 0\no100 while [1]\n#1 = [#1 + 1]\no100 endwhile\nM2\n");
+  io::Cancel during;
+  std::string error;
+  std::thread read([&] {
+    try {
+      io::JobSegments(idle, *machine, std::nullopt, 5.0, &during);
+    } catch (const Error& e) {
+      error = e.what();
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto t0 = std::chrono::steady_clock::now();
+  during.Request("cancelled by the test");
+  read.join();
+  EXPECT_EQ(error, "cancelled by the test");
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(2));
+}
+
+// An output that fails (its reader died) ends the stream with its error, and the recording holds
+// exactly the rows written until then: the start of the whole stream's rows.
+TEST(Stream, OutputThatFailsLeavesWhatWasWrittenRecorded) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  const io::Job job = SampleJob("circle");
+  Capture whole(machine->AxisCount());
+  StreamJob(job, *machine, &whole);
+  class Failing final : public io::CncOutput {
+   public:
+    void Write(const io::StreamRow&) override {
+      if (++rows_ > 500) throw Error("cannot write the stream: Broken pipe");
+    }
+    void Close() override {}
+
+   private:
+    long rows_ = 0;
+  } failing;
+  io::StreamOptions o;
+  o.period_s = job.vpop.period_s;
+  o.commit_horizon = job.vpop.commit_horizon;
+  io::Stream stream(*machine, o);
+  const std::string file = test::Scratch("failing_output.csv");
+  io::SetpointWriter record(file, io::AxisNames(*machine));
+  test::ExpectError([&] { stream.Run(*io::JobSegments(job, *machine), failing, &record); },
+                    "Broken pipe");
+  EXPECT_TRUE(stream.Recorded());
+  const interp::SetpointTable recorded = io::ReadSetpoints(file);
+  ASSERT_EQ(recorded.Rows(), 500u);
+  for (std::size_t r = 0; r < recorded.Rows(); ++r) {
+    for (std::size_t i = 0; i < recorded.columns.size(); ++i) {
+      ASSERT_EQ(recorded.columns[i][r], whole.rows[r][i]) << "row " << r;
+    }
+  }
+}
+
+// `dtis serve`'s requests: each key once, bounded nesting, a command it knows; every error reply
+// one line of valid JSON whatever bytes the request held.
+TEST(ServeRequest, RefusesDuplicateKeysDeepNestingAndBytesThatAreNotUtf8) {
+  using Command = io::ServeRequest::Command;
+  EXPECT_EQ(io::ParseServeRequest(R"({"cmd":"status"})").command, Command::kStatus);
+  const io::ServeRequest submit = io::ParseServeRequest(R"({"cmd":"submit","job":"/a b.toml"})");
+  EXPECT_EQ(submit.command, Command::kSubmit);
+  EXPECT_EQ(submit.job, "/a b.toml");
+  test::ExpectError([] { io::ParseServeRequest(R"({"cmd":"status","cmd":"shutdown"})"); },
+                    "duplicate key \"cmd\"");
+  test::ExpectError([] { io::ParseServeRequest(R"({"cmd":"abort","x":{"y":1,"y":2}})"); },
+                    "duplicate key \"y\"");
+  EXPECT_EQ(io::ParseServeRequest(R"({"cmd":"pause","x":{"cmd":1},"y":{"cmd":2}})").command,
+            Command::kPause);  // the same key in different objects
+  test::ExpectError([] { io::ParseServeRequest(R"({"cmd":"status","x":[[[[[[[[[[]]]]]]]]]]})"); },
+                    "nested deeper than 8");
+  test::ExpectError([] { io::ParseServeRequest(R"({"cmd":"fly"})"); }, "unknown command 'fly'");
+  test::ExpectError([] { io::ParseServeRequest(R"({"cmd":"submit","job":"a\u0000b"})"); }, "NUL");
+  for (const std::string bad : {"{\"cmd\":\"\xff\"}", "\xc3\x28", "{\"\xed\xa0\x80\":1}"}) {
+    try {
+      io::ParseServeRequest(bad);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const Error& e) {
+      const std::string reply = io::ServeErrorReply(e.what());
+      EXPECT_EQ(reply.find('\n'), std::string::npos);
+      const auto parsed = nlohmann::json::parse(reply);  // throws on bytes that are not UTF-8
+      EXPECT_EQ(parsed["ok"], false);
+      EXPECT_NE(parsed["error"].get<std::string>().find("malformed request"), std::string::npos);
+    }
   }
 }
 

@@ -1194,6 +1194,52 @@ std::shared_ptr<const geometry::BSplineCurve> WavyGuide() {
       3, {0, 0, 0, 0, 1, 1, 1, 1}, {{30, -5, 0}, {25, 20, 0}, {35, 40, 0}, {30, 65, 0}}, {}});
 }
 
+// A pass over a cubic face reports every knot line it crosses as a break of its path, at the arc
+// length where its contact point is on the line: the planner sees the jumps of the axes' third
+// derivatives coming. The wavy face is cubic along v with simple knots (C2 across each).
+TEST(SurfacePass, APassReportsTheKnotLinesItCrossesAsBreaks) {
+  const FaceSurface surface(WavyRuledFace(), "wavy");
+  ASSERT_TRUE(surface.UKnotLines().empty());  // degree 1 across: no break of the third derivative
+  const std::vector<double>& knots = surface.VKnotLines();
+  ASSERT_GT(knots.size(), 10u);
+  for (const Orientation& o : {Orientation{}, Tilted10()}) {
+    StrategySpec spec;
+    spec.plane_normal = Eigen::Vector3d::UnitX();
+    spec.direction = Eigen::Vector3d::UnitY();
+    spec.stepover_mm = 13.0;
+    spec.max_passes = 3;
+    const auto passes = strategies::BuildPasses(surface, Ball(3.0), o, spec);
+    ASSERT_EQ(passes.passes.size(), 3u);
+    for (const auto& pass : passes.passes) {
+      SCOPED_TRACE(fmt::format("{}, pass {}", o.Describe(), pass->Index()));
+      const double v0 = pass->Start().v;
+      strategies::ContactPoint end;
+      ASSERT_EQ(pass->Evaluate(pass->At(pass->Start(), *pass->Length()).state, &end),
+                strategies::EvalStatus::kOk);
+      const double lo = std::min(v0, end.uv.y()), hi = std::max(v0, end.uv.y());
+      const auto crossed =
+          std::count_if(knots.begin(), knots.end(), [&](double k) { return k > lo && k < hi; });
+      ASSERT_GT(crossed, 5);
+      const std::vector<double>& lines = pass->KnotLines();
+      ASSERT_EQ(static_cast<long>(lines.size()), crossed);
+      EXPECT_TRUE(std::is_sorted(lines.begin(), lines.end()));
+      PathState st = pass->Start();
+      for (const double s : lines) {
+        const PathSample at = pass->At(st, s);
+        ASSERT_EQ(at.status, PathStatus::kOk);
+        const auto near = std::min_element(knots.begin(), knots.end(), [&](double a, double b) {
+          return std::abs(a - at.state.v) < std::abs(b - at.state.v);
+        });
+        // On the line to the arc length's 1e-9 mm (v runs at about 1 per mm here).
+        EXPECT_NEAR(at.state.v, *near, 1e-8) << "at s = " << s;
+        st = at.state;
+      }
+      const std::vector<double> breaks = pass->Breaks(0.0, *pass->Length());
+      EXPECT_EQ(breaks, lines);  // no flat piece on a ball's pass
+    }
+  }
+}
+
 // The closest point of a guide: the foot of the perpendicular from the point in XY, the same
 // from a scan and from a hint nearby, with the guide's own derivatives there handed back.
 TEST(SurfacePass, TheClosestPointOfAGuideIsTheFootOfThePerpendicular) {

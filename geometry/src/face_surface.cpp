@@ -7,6 +7,8 @@
 #include <Geom2d_Curve.hxx>
 #include <Geom_BSplineSurface.hxx>
 #include <Geom_Surface.hxx>
+#include <TColStd_Array1OfInteger.hxx>
+#include <TColStd_Array1OfReal.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopLoc_Location.hxx>
 #include <TopoDS.hxx>
@@ -89,6 +91,23 @@ FaceSurface::FaceSurface(const TopoDS_Face& face, std::string where)
     spans_ = BSplineSurfaceSpans::From(*surface_.BSpline());
   }
   BRepTools::UVBounds(face_, u0_, u1_, v0_, v1_);
+  if (surface_.GetType() == GeomAbs_BSplineSurface) {
+    const Handle(Geom_BSplineSurface) b = surface_.BSpline();
+    // Interior knots where the continuity is below C3 (degree - multiplicity < 3).
+    const auto lines = [](const TColStd_Array1OfReal& knots, const TColStd_Array1OfInteger& mults,
+                          int degree, double lo, double hi) {
+      std::vector<double> out;
+      const double eps = 1e-12 * std::max(1.0, hi - lo);
+      for (int i = knots.Lower(); i <= knots.Upper(); ++i) {
+        if (knots(i) > lo + eps && knots(i) < hi - eps && degree - mults(i) < 3) {
+          out.push_back(knots(i));
+        }
+      }
+      return out;
+    };
+    u_knots_ = lines(b->UKnots(), b->UMultiplicities(), b->UDegree(), u0_, u1_);
+    v_knots_ = lines(b->VKnots(), b->VMultiplicities(), b->VDegree(), v0_, v1_);
+  }
   // The domain is the UV box unless the face's boundary is not that box's four sides.
   trimmed_ = !BoundedByBox(face_, u0_, u1_, v0_, v1_, 1e-9, 2);
   if (trimmed_) {

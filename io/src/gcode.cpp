@@ -87,10 +87,10 @@ class GcodeReader::Blocks {
         Fail(column, fmt::format("expected a word (a letter and a number), got '{}'", c));
       }
       if (letter == 'O') {
-        Fail(
-            column,
-            "O-words (subroutines, loops, conditionals) are not read by dtis' reader; read the "
-            "program with LinuxCNC's interpreter (interpreter = \"rs274ngc\" in the job's [path])");
+        Fail(column,
+             "O-words (subroutines, loops, conditionals) are not read by dtis' reader; read the "
+             "program with LinuxCNC's interpreter (interpreter = \"rs274ngc\" in the job's "
+             "[path])");
       }
       ++i;
       while (i < n && (text[i] == ' ' || text[i] == '\t')) ++i;
@@ -306,10 +306,11 @@ std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOpt
 }
 
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
-                         std::shared_ptr<const ToolTable> tools, const GcodeReadOptions& options)
+                         std::shared_ptr<const ToolTable> tools, Cancel* cancel,
+                         const GcodeReadOptions& options)
     : options_(options), blocks_(std::make_unique<Blocks>(path)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), options);
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel, options);
     return;
   }
   if (tools) {
@@ -342,10 +343,6 @@ const std::vector<std::pair<std::string, int>>& GcodeReader::Notes() const {
 std::optional<GcodeMove> GcodeReader::Next() {
   if (rs274_) return rs274_->Next();
   while (!ended_) {
-    if (options_.cancel != nullptr && options_.cancel->load(std::memory_order_relaxed)) {
-      ended_ = true;
-      throw Error("{}: reading stopped after line {}", File(), line_);
-    }
     std::string_view l;
     if (in_) {
       if (!std::getline(*in_, line_text_)) break;
@@ -398,7 +395,7 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
 
 GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
                        std::shared_ptr<const ToolTable> tools, const GcodeReadOptions& options) {
-  GcodeReader reader(path, interpreter, std::move(tools), options);
+  GcodeReader reader(path, interpreter, std::move(tools), nullptr, options);
   return ReadAll(reader);
 }
 

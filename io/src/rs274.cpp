@@ -2,7 +2,6 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
-#include <poll.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -87,7 +86,7 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
 }
 
 Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
-                         const GcodeReadOptions& options)
+                         Cancel* cancel, const GcodeReadOptions& options)
     : file_(path), options_(options) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
@@ -138,19 +137,17 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
     pid_ = -1;
     throw Error("{}: cannot start {}: {}", path, program, std::strerror(spawned));
   }
-  out_ = pipe_fds[0];
+  out_ = ::fdopen(pipe_fds[0], "r");
+  if (out_ == nullptr) {
+    ::close(pipe_fds[0]);
+    Reap();
+    throw Error("{}: cannot read {}: {}", path, program, std::strerror(errno));
+  }
+  kill_on_cancel_ = Cancel::Hook(cancel, [pid = pid_] { ::kill(pid, SIGKILL); });
 }
 
 Rs274Reader::Rs274Reader(std::string_view records, const std::string& name)
     : file_(name), text_(records) {}
-
-void Rs274Reader::CheckCancel() {
-  if (options_.cancel == nullptr || !options_.cancel->load(std::memory_order_relaxed)) return;
-  ended_ = true;
-  if (pid_ > 0) ::kill(pid_, SIGKILL);
-  Reap();
-  throw Error("{}: reading stopped", file_);
-}
 
 bool Rs274Reader::NextRecord() {
   record_.clear();
@@ -161,37 +158,21 @@ bool Rs274Reader::NextRecord() {
     text_->remove_prefix(end == std::string_view::npos ? text_->size() : end + 1);
     return true;
   }
-  for (;;) {
-    const std::size_t end = pending_.find('\n', taken_);
-    if (end != std::string::npos || (output_ended_ && taken_ < pending_.size())) {
-      const std::size_t stop = end == std::string::npos ? pending_.size() : end;
-      record_.assign(pending_, taken_, stop - taken_);
-      taken_ = end == std::string::npos ? stop : stop + 1;
-      return true;
-    }
-    if (output_ended_) return false;
-    pending_.erase(0, taken_);
-    taken_ = 0;
-    CheckCancel();
-    if (options_.cancel != nullptr) {
-      // The interpreter may compute for long without a move (a loop): look at the flag meanwhile.
-      pollfd p{out_, POLLIN, 0};
-      if (::poll(&p, 1, 100) == 0) continue;
-    }
-    char buffer[65536];
-    const ssize_t n = ::read(out_, buffer, sizeof buffer);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      output_ended_ = true;
-      continue;
-    }
-    pending_.append(buffer, static_cast<std::size_t>(n));
+  char buffer[4096];
+  bool got = false;
+  while (std::fgets(buffer, sizeof buffer, out_) != nullptr) {
+    got = true;
+    record_ += buffer;
+    if (record_.back() == '\n') break;
   }
+  if (!record_.empty() && record_.back() == '\n') record_.pop_back();
+  return got;
 }
 
 Rs274Reader::~Rs274Reader() {
+  kill_on_cancel_.Reset();
   if (pid_ > 0) ::kill(pid_, SIGKILL);
-  if (out_ >= 0) ::close(out_);
+  if (out_ != nullptr) std::fclose(out_);
   if (pid_ > 0) {
     int status = 0;
     while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
@@ -200,6 +181,7 @@ Rs274Reader::~Rs274Reader() {
 }
 
 std::string Rs274Reader::Reap() {
+  kill_on_cancel_.Reset();  // the pid stays ours until it is reaped
   if (pid_ <= 0) return {};
   int status = 0;
   pid_t done;
@@ -291,7 +273,7 @@ std::optional<GcodeMove> Rs274Reader::Next() {
     switch (kind) {
       case 'E':
         Fail(static_cast<int>(line), std::string(f.Rest()));
-      case 'B': {  // the interpreter ran max_blocks blocks and was stopped
+      case 'B': {  // the interpreter ran max_blocks blocks and stopped before this one
         ended_ = true;
         Reap();
         throw Error("{}", TooManyBlocks(file_, line, options_));

@@ -5,6 +5,7 @@
 #include <sys/types.h>
 
 #include <array>
+#include <cstdio>
 #include <memory>
 #include <optional>
 #include <string>
@@ -12,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "dtis/io/cancel.hpp"
 #include "dtis/io/gcode.hpp"
 #include "dtis/io/tool_table.hpp"
 
@@ -29,10 +31,11 @@ class Rs274Reader {
  public:
   // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
   // number exists, without offsets). Throws dtis::Error when the file cannot be read or
-  // dtis-rs274 cannot be started.
-  // `options`: the interpreter stops after max_blocks blocks executed; a cancel stops the read.
+  // dtis-rs274 cannot be started. `cancel` (which must outlive the reader), once requested, kills
+  // the interpreter: Next() then throws.
+  // The interpreter executes at most options.max_blocks blocks.
   explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr,
-                       const GcodeReadOptions& options = {});
+                       Cancel* cancel = nullptr, const GcodeReadOptions& options = {});
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running
@@ -58,16 +61,11 @@ class Rs274Reader {
   // The next record into record_; false at the end of the output.
   bool NextRecord();
 
-  // Throws when options_.cancel is set.
-  void CheckCancel();
-
   std::string file_;
   GcodeReadOptions options_;
   pid_t pid_ = -1;
-  int out_ = -1;           // the interpreter's output
-  std::string pending_;    // read from it, not yet taken as records
-  std::size_t taken_ = 0;  // of pending_
-  bool output_ended_ = false;
+  std::FILE* out_ = nullptr;
+  Cancel::Hook kill_on_cancel_;           // reset before the interpreter is reaped
   std::optional<std::string_view> text_;  // records given as text, what is left of them
   std::string record_;
   long records_ = 0;

@@ -10,17 +10,22 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <thread>
 #include <utility>
 #include <vector>
 
 #include "dtis/core/error.hpp"
+#include "dtis/io/cancel.hpp"
+#include "dtis/io/serve_request.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace dtis::io {
@@ -33,6 +38,13 @@ constexpr std::size_t kMaxClients = 32;
 constexpr std::size_t kMaxLine = std::size_t{1} << 16;    // a request line
 constexpr std::size_t kMaxUnsent = std::size_t{1} << 16;  // replies not read yet: read no further
 constexpr std::size_t kMaxQueued = 64;                    // jobs waiting, each with its paths read
+constexpr int kValidators = 2;  // jobs read at a time: one that takes long delays no other
+
+// A reply as one line of JSON: a message that quotes a file's bytes that are not UTF-8 is sent
+// with U+FFFD in their place, never an exception.
+std::string Dump(const json& reply) {
+  return reply.dump(-1, ' ', false, json::error_handler_t::replace);
+}
 
 struct QueuedJob {
   int id = 0;
@@ -65,54 +77,70 @@ class Daemon {
         at_(o.from) {}
 
   // Never throws, never waits for more than the daemon's lock, which nothing holds for long.
-  Answer Respond(const std::string& line) {
-    json reply;
+  Answer Respond(std::string_view line) noexcept {
     try {
-      const json request = json::parse(line);
-      if (!request.is_object() || !request.contains("cmd") || !request["cmd"].is_string()) {
-        throw Error("expected an object with a string \"cmd\"");
-      }
-      const std::string cmd = request["cmd"];
-      if (cmd == "submit") {
-        if (!request.contains("job") || !request["job"].is_string()) {
-          throw Error("submit needs \"job\": the path of a job file");
-        }
-        return {"", request["job"].get<std::string>()};
-      }
+      const ServeRequest request = ParseServeRequest(line);
+      using Command = ServeRequest::Command;
+      if (request.command == Command::kSubmit) return {"", request.job};
+      json reply;
       std::unique_lock lock(mutex_);
-      if (cmd == "status") {
-        reply = Status();
-      } else if (cmd == "pause") {
-        held_ = true;
-        if (stream_) stream_->Pause();
-        reply = {{"ok", true}};
-      } else if (cmd == "resume") {
-        held_ = false;
-        if (stream_) stream_->Resume();
-        wake_.notify_all();
-        reply = {{"ok", true}};
-      } else if (cmd == "abort") {
-        held_ = true;  // the queue waits for the operator
-        if (stream_) stream_->Abort();
-        reply = {{"ok", true}, {"aborted", stream_ != nullptr}};
-      } else if (cmd == "shutdown") {
-        ShutdownLocked();
-        reply = {{"ok", true}};
-      } else {
-        throw Error("unknown command '{}' (submit, status, pause, resume, abort, shutdown)", cmd);
+      switch (request.command) {
+        case Command::kStatus:
+          reply = Status();
+          break;
+        case Command::kPause:
+          held_ = true;
+          if (stream_) stream_->Pause();
+          reply = {{"ok", true}};
+          break;
+        case Command::kResume:
+          held_ = false;
+          if (stream_) stream_->Resume();
+          wake_.notify_all();
+          reply = {{"ok", true}};
+          break;
+        case Command::kAbort:
+          held_ = true;  // the queue waits for the operator
+          if (stream_) stream_->Abort();
+          reply = {{"ok", true}, {"aborted", stream_ != nullptr}};
+          break;
+        case Command::kShutdown:
+          ShutdownLocked();
+          reply = {{"ok", true}};
+          break;
+        case Command::kSubmit:
+          break;
       }
-    } catch (const json::exception& e) {
-      reply = {{"ok", false}, {"error", fmt::format("malformed request: {}", e.what())}};
+      return {Dump(reply), std::nullopt};
+    } catch (const Error& e) {
+      return {ServeErrorReply(e.what()), std::nullopt};
     } catch (const std::exception& e) {
-      reply = {{"ok", false}, {"error", e.what()}};
+      return {ServeErrorReply(fmt::format("internal error: {}", e.what())), std::nullopt};
+    } catch (...) {
+      return {ServeErrorReply("internal error"), std::nullopt};
     }
-    return {reply.dump(), std::nullopt};
   }
 
   // A submit: the job, its machine, and every file it reads (curve, program, STEP face, passes)
   // loaded and checked as the stream will use them, then queued. The reply; never throws.
-  std::string Submit(const std::string& file) {
+  // `cancel` (shutdown) ends the reading early, with an error reply.
+  std::string Submit(const std::string& file, Cancel* cancel) noexcept {
     json reply;
+    try {
+      std::lock_guard lock(mutex_);
+      ++validating_;
+    } catch (...) {
+    }
+    struct Done {
+      Daemon& d;
+      ~Done() {
+        try {
+          std::lock_guard lock(d.mutex_);
+          --d.validating_;
+        } catch (...) {
+        }
+      }
+    } done{*this};
     try {
       Job job = LoadJob(file);
       if (std::filesystem::weakly_canonical(job.machine_file) !=
@@ -121,7 +149,8 @@ class Daemon {
       }
       if (o_.planner) job.vpop.planner = *o_.planner;
       CheckRoom();
-      auto segments = JobSegments(job, *machine_);  // refuses what cannot be streamed
+      // Refuses what cannot be streamed, a program that runs for more than a job may too.
+      auto segments = JobSegments(job, *machine_, std::nullopt, 5.0, cancel);
       std::lock_guard lock(mutex_);
       CheckRoomLocked();
       const int id = ++last_id_;
@@ -131,13 +160,35 @@ class Daemon {
         reply["unreachable"] = notes;
       }
       wake_.notify_all();
+    } catch (const Error& e) {
+      return ServeErrorReply(e.what());
     } catch (const std::exception& e) {
-      reply = {{"ok", false}, {"error", e.what()}};
+      return ServeErrorReply(fmt::format("internal error: {}", e.what()));
+    } catch (...) {
+      return ServeErrorReply("internal error");
     }
-    return reply.dump();
+    try {
+      return Dump(reply);
+    } catch (...) {
+      return ServeErrorReply("internal error: the reply could not be built");
+    }
   }
 
-  // The job runner: one job at a time, until shutdown.
+  // The job runner's thread: one job at a time, until shutdown. Nothing escapes it: whatever a job
+  // throws is its error in `done`; anything else shuts the daemon down (its job ended at rest).
+  void RunJobsCatchingAll() noexcept {
+    try {
+      RunJobs();
+    } catch (...) {
+      try {
+        std::lock_guard lock(mutex_);
+        ShutdownLocked();
+      } catch (...) {
+      }
+    }
+  }
+
+ private:
   void RunJobs() {
     for (;;) {
       QueuedJob next;
@@ -171,6 +222,16 @@ class Daemon {
         StreamResult r;
         try {
           r = stream.Run(*next.segments, out_, record ? &*record : nullptr);
+        } catch (const Error& e) {
+          {
+            std::lock_guard lock(mutex_);
+            stream_ = nullptr;
+          }
+          f.rows = stream.Status().rows;
+          // The output failed (its reader died): what was sent is recorded, the evidence.
+          if (!stream.Recorded()) throw;
+          throw Error("{}; the {} setpoints sent until then are recorded in job-{}.csv", e.what(),
+                      f.rows, next.id);
         } catch (...) {
           std::lock_guard lock(mutex_);
           stream_ = nullptr;
@@ -189,6 +250,8 @@ class Daemon {
         if (r.last_q) at_ = r.last_q;
       } catch (const std::exception& e) {
         f.error = e.what();
+      } catch (...) {
+        f.error = "internal error";
       }
       std::lock_guard lock(mutex_);
       stream_ = nullptr;
@@ -198,6 +261,7 @@ class Daemon {
     }
   }
 
+ public:
   bool Quit() {
     std::lock_guard lock(mutex_);
     return quit_;
@@ -248,6 +312,7 @@ class Daemon {
     json queued = json::array();
     for (const auto& q : queue_) queued.push_back({{"id", q.id}, {"job", q.job.file}});
     s["queue"] = queued;
+    s["validating"] = validating_;
     json done = json::array();
     for (const auto& f : done_) {
       done.push_back({{"id", f.id},
@@ -275,6 +340,7 @@ class Daemon {
   int current_ = 0;
   std::string current_file_;
   int last_id_ = 0;
+  int validating_ = 0;  // submitted jobs being read
   bool held_ = false, quit_ = false;
 };
 
@@ -328,26 +394,30 @@ void ClaimSocketPath(const std::string& path) {
   }
 }
 
-// Validates submitted jobs one after the other on a thread of its own, at a lower CPU priority
-// than the stream's planner (a job being read must never make the running one underrun), and
-// hands the replies back to the control loop, waking its poll.
+// Validates submitted jobs on kValidators threads of their own, at a lower CPU priority than the
+// stream's planner (a job being read must never make the running one underrun), and hands the
+// replies back to the control loop, waking its poll. A job that takes long to read (a program
+// that runs until its 24 h bound) holds one thread, not the others, and never the control loop;
+// shutdown cancels whatever is being read.
 class Validator {
  public:
   explicit Validator(Daemon& daemon) : daemon_(daemon) {
     if (pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) {
       throw Error("dtis serve: pipe: {}", std::strerror(errno));
     }
-    thread_ = std::thread([this] { Run(); });
-  }
-  ~Validator() {
-    {
-      std::lock_guard lock(mutex_);
-      quit_ = true;
+    try {
+      for (int k = 0; k < kValidators; ++k) threads_.emplace_back([this] { Run(); });
+    } catch (...) {
+      Stop();
+      throw;
     }
-    todo_ready_.notify_all();
-    thread_.join();
-    ::close(wake_[0]);
-    ::close(wake_[1]);
+  }
+  ~Validator() { Stop(); }
+  // Waits for the workers to end, once CancelAll was called.
+  void Join() noexcept {
+    for (auto& t : threads_) {
+      if (t.joinable()) t.join();
+    }
   }
   Validator(const Validator&) = delete;
   Validator& operator=(const Validator&) = delete;
@@ -357,6 +427,15 @@ class Validator {
       std::lock_guard lock(mutex_);
       todo_.push_back({client, std::move(job_file)});
     }
+    todo_ready_.notify_all();
+  }
+  // Ends every read under way (each gets an error reply) and takes no more.
+  void CancelAll(const std::string& why) {
+    std::lock_guard lock(mutex_);
+    quit_ = true;
+    for (const auto& cancel : reading_) cancel->Request(why);
+    for (const auto& [client, file] : todo_) replies_.emplace_back(client, ServeErrorReply(why));
+    todo_.clear();
     todo_ready_.notify_all();
   }
   // Readable when replies are ready.
@@ -371,23 +450,40 @@ class Validator {
   }
 
  private:
-  void Run() {
+  void Stop() noexcept {
+    try {
+      CancelAll("the daemon is shutting down");
+    } catch (...) {
+    }
+    Join();
+    ::close(wake_[0]);
+    ::close(wake_[1]);
+  }
+  // A worker's thread: nothing escapes it (a reply per job, an error if need be).
+  void Run() noexcept {
     setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);  // best effort
     for (;;) {
-      std::pair<std::uint64_t, std::string> next;
-      {
-        std::unique_lock lock(mutex_);
-        todo_ready_.wait(lock, [&] { return quit_ || !todo_.empty(); });
-        if (quit_) return;
-        next = std::move(todo_.front());
-        todo_.pop_front();
+      try {
+        std::pair<std::uint64_t, std::string> next;
+        auto cancel = std::make_shared<Cancel>();
+        {
+          std::unique_lock lock(mutex_);
+          todo_ready_.wait(lock, [&] { return quit_ || !todo_.empty(); });
+          if (quit_) return;
+          next = std::move(todo_.front());
+          todo_.pop_front();
+          reading_.insert(cancel);
+        }
+        std::string reply = daemon_.Submit(next.second, cancel.get());
+        {
+          std::lock_guard lock(mutex_);
+          reading_.erase(cancel);
+          replies_.emplace_back(next.first, std::move(reply));
+        }
+        (void)!::write(wake_[1], "r", 1);
+      } catch (...) {
+        // Out of memory for a reply: that client waits no more than the others do.
       }
-      std::string reply = daemon_.Submit(next.second);
-      {
-        std::lock_guard lock(mutex_);
-        replies_.emplace_back(next.first, std::move(reply));
-      }
-      (void)!::write(wake_[1], "r", 1);
     }
   }
 
@@ -396,9 +492,10 @@ class Validator {
   std::mutex mutex_;
   std::condition_variable todo_ready_;
   std::deque<std::pair<std::uint64_t, std::string>> todo_;
+  std::set<std::shared_ptr<Cancel>> reading_;
   std::vector<std::pair<std::uint64_t, std::string>> replies_;
   bool quit_ = false;
-  std::thread thread_;
+  std::vector<std::thread> threads_;
 };
 
 // One connection. Its requests are answered in order: while its submit is validated, its next
@@ -410,9 +507,22 @@ struct Client {
   std::string in, out;
   bool validating = false;
   bool eof = false;  // the peer sent everything it will send
+  // After a line over kMaxLine: what it sends is read and dropped (closing with input unread would
+  // reset the connection, and the peer might lose the error), until it closes, kMaxDrained bytes
+  // or kMaxDraining, whichever comes first.
+  bool discard = false;
+  std::size_t drained = 0;
+  std::chrono::steady_clock::time_point discard_since{};
+  static constexpr std::size_t kMaxDrained = std::size_t{1} << 20;
+  static constexpr std::chrono::seconds kMaxDraining{5};
 
-  bool Readable() const { return !eof && !validating && out.size() < kMaxUnsent; }
-  bool Done() const { return fd < 0 || (eof && !validating && out.empty()); }
+  bool Readable() const { return !eof && (discard || (!validating && out.size() < kMaxUnsent)); }
+  bool Done() const {
+    return fd < 0 || (eof && !validating && out.empty()) ||
+           (discard && out.empty() &&
+            (drained > kMaxDrained ||
+             std::chrono::steady_clock::now() - discard_since > kMaxDraining));
+  }
 
   // Sends what it can without waiting; a peer gone closes the connection.
   void Flush() {
@@ -457,48 +567,31 @@ void ReadFrom(Client& c) {
     c.eof = true;
   } else if (n < 0) {
     if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) c.Close();
+  } else if (c.discard) {
+    c.drained += static_cast<std::size_t>(n);
   } else {
     c.in.append(buf, static_cast<std::size_t>(n));
     if (c.in.size() > kMaxLine && c.in.find('\n') == std::string::npos) {
       c.out += R"({"ok":false,"error":"request longer than 64 KiB"})"
                "\n";
       c.in.clear();
-      c.eof = true;  // read no more; close once the error is sent
+      c.discard = true;  // answer nothing more; end once the error is sent
+      c.discard_since = std::chrono::steady_clock::now();
     }
   }
 }
 
-}  // namespace
-
-void Serve(const ServeOptions& options, CncOutput& out) {
-  Daemon daemon(options, out);
-  const sockaddr_un addr = Address(options.socket_path);
-  ClaimSocketPath(options.socket_path);
-  const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (listener < 0) throw Error("socket: {}", std::strerror(errno));
-  const mode_t old_mask = umask(0077);  // the socket file is the owner's only
-  const int bound = bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
-  umask(old_mask);
-  if (bound != 0 || chmod(options.socket_path.c_str(), 0600) != 0 || listen(listener, 8) != 0) {
-    const std::string why = std::strerror(errno);
-    ::close(listener);
-    throw Error("{}: cannot listen: {}", options.socket_path, why);
-  }
-  if (options.listening) options.listening();
-  std::thread runner([&] { daemon.RunJobs(); });
-  std::optional<Validator> validator;
-  validator.emplace(daemon);
-
-  // The control loop: it never blocks on a client, a job file or a job, so that status, pause
-  // and abort are answered within a poll round, whatever else happens.
-  std::vector<Client> clients;
+// The control loop: it never blocks on a client, a job file or a job, so that status, pause
+// and abort are answered within a poll round, whatever else happens. Returns on shutdown.
+void ControlLoop(const ServeOptions& options, int listener, Daemon& daemon, Validator& validator,
+                 std::vector<Client>& clients) {
   std::uint64_t serial = 0;
   while (!daemon.Quit()) {
     if (options.stop && *options.stop) {
       daemon.Shutdown();
       break;
     }
-    std::vector<pollfd> fds{{listener, POLLIN, 0}, {validator->WakeFd(), POLLIN, 0}};
+    std::vector<pollfd> fds{{listener, POLLIN, 0}, {validator.WakeFd(), POLLIN, 0}};
     for (const auto& c : clients) {
       const short events =
           static_cast<short>((c.Readable() ? POLLIN : 0) | (c.out.empty() ? 0 : POLLOUT));
@@ -512,15 +605,16 @@ void Serve(const ServeOptions& options, CncOutput& out) {
       if (got & POLLOUT) c.Flush();
       if (c.fd >= 0 && (got & (POLLIN | POLLHUP | POLLERR)) && c.Readable()) ReadFrom(c);
       if (c.fd >= 0 && (got & POLLERR)) c.Close();
-      HandleLines(c, daemon, *validator);
+      HandleLines(c, daemon, validator);
+      if (c.discard && c.out.empty() && c.fd >= 0) ::shutdown(c.fd, SHUT_WR);  // the error is out
     }
     if (fds[1].revents & POLLIN) {
-      for (auto& [to, reply] : validator->TakeReplies()) {
+      for (auto& [to, reply] : validator.TakeReplies()) {
         for (auto& c : clients) {
           if (c.serial != to) continue;
           c.validating = false;
           c.out += reply + "\n";
-          HandleLines(c, daemon, *validator);
+          HandleLines(c, daemon, validator);
         }
       }
     }
@@ -545,11 +639,62 @@ void Serve(const ServeOptions& options, CncOutput& out) {
     }
     std::erase_if(clients, [](const Client& c) { return c.fd < 0; });
   }
-  for (auto& c : clients) c.Close();
+}
+
+}  // namespace
+
+void Serve(const ServeOptions& options, CncOutput& out) {
+  Daemon daemon(options, out);
+  const sockaddr_un addr = Address(options.socket_path);
+  ClaimSocketPath(options.socket_path);
+  const int listener = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+  if (listener < 0) throw Error("socket: {}", std::strerror(errno));
+  const mode_t old_mask = umask(0077);  // the socket file is the owner's only
+  const int bound = bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+  umask(old_mask);
+  if (bound != 0 || chmod(options.socket_path.c_str(), 0600) != 0 || listen(listener, 8) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(listener);
+    throw Error("{}: cannot listen: {}", options.socket_path, why);
+  }
+  // From here on, whatever happens ends the same way: the current job's stop to rest, its
+  // recording written, the socket removed, every thread joined.
+  std::string failure;
+  std::vector<Client> clients;
+  std::optional<std::thread> runner;
+  std::optional<Validator> validator;
+  try {
+    runner.emplace([&] { daemon.RunJobsCatchingAll(); });
+    validator.emplace(daemon);
+    if (options.listening) options.listening();
+    ControlLoop(options, listener, daemon, *validator, clients);
+  } catch (const std::exception& e) {
+    failure = e.what();
+  } catch (...) {
+    failure = "unknown exception";
+  }
+  daemon.Shutdown();
   ::close(listener);
   ::unlink(options.socket_path.c_str());
-  runner.join();
-  validator.reset();  // waits for a job being read, if any
+  if (validator) validator->CancelAll("the daemon is shutting down");
+  if (runner) runner->join();
+  if (validator) {
+    // The reads just cancelled end soon: their clients get the error, as far as they read it.
+    validator->Join();
+    for (auto& [to, reply] : validator->TakeReplies()) {
+      for (auto& c : clients) {
+        if (c.serial == to) c.out += reply + "\n";
+      }
+    }
+  }
+  for (auto& c : clients) {
+    c.Flush();
+    c.Close();
+  }
+  validator.reset();
+  if (!failure.empty()) {
+    throw Error("dtis serve: internal error ({}); the machine was brought to rest", failure);
+  }
 }
 
 std::string SendRequest(const std::string& socket_path, const std::string& request) {

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <numbers>
 #include <thread>
 
 #include "dtis/core/error.hpp"
@@ -121,47 +122,115 @@ class ListSegments final : public SegmentSource {
   std::optional<StreamSegment> first_;
 };
 
+// The least time a program's moves take: each at most at its F word (rapids at the rapid feed),
+// along at least its chord (an arc: its radius times its sweep), and its dwells. Read before
+// anything else, so that a program that would run for more than a job may take (24 h), an
+// endless loop among them, is refused as soon as it has gone past that bound.
+class ProgramDuration {
+ public:
+  ProgramDuration(const std::string& file, double rapid_mm_s)
+      : file_(file), rapid_mm_s_(rapid_mm_s) {}
+  void Add(const GcodeMove& m) {
+    double length_mm = 0.0;
+    if (at_) {
+      length_mm = (m.to - *at_).norm();
+      if ((m.kind == GcodeMove::Kind::kArcCw || m.kind == GcodeMove::Kind::kArcCcw)) {
+        length_mm = std::max(length_mm, ArcLength(m));
+      }
+    }
+    at_ = m.to;
+    const double feed_mm_s = m.kind == GcodeMove::Kind::kRapid ? rapid_mm_s_ : m.feed_mm_min / 60.0;
+    if (feed_mm_s > 0.0 && std::isfinite(length_mm)) seconds_ += length_mm / feed_mm_s;
+    if (std::isfinite(m.dwell_s) && m.dwell_s > 0.0) seconds_ += m.dwell_s;
+    if (seconds_ > interp::kMaxMotionS) {
+      throw Error(
+          "{}:{}: the program moves for more than the {:g} h a job may take by this block (its "
+          "moves at their F words, its rapids at {:g} mm/s, its dwells); an endless loop?",
+          file_, m.line, kMaxMotionHours, rapid_mm_s_);
+    }
+  }
+
+ private:
+  // Radius times sweep in the arc's plane (the helix' rise left out): less than its length.
+  double ArcLength(const GcodeMove& m) const {
+    const Eigen::Vector3d n = m.normal.normalized();
+    const auto in_plane = [&](const Eigen::Vector3d& v) { return v - n * n.dot(v); };
+    const Eigen::Vector3d u = in_plane(*at_ - m.center), v = in_plane(m.to - m.center);
+    const double r = u.norm();
+    if (!(r > 0.0) || !n.allFinite()) return 0.0;
+    double sweep = std::atan2(n.dot(u.cross(v)), u.dot(v));  // counterclockwise about n
+    if (m.kind == GcodeMove::Kind::kArcCw) sweep = -sweep;
+    if (sweep <= 1e-12) sweep += 2.0 * std::numbers::pi;  // the same point again: a whole turn
+    return r * (sweep + 2.0 * std::numbers::pi * std::max(0, m.turns - 1));
+  }
+
+  std::string file_;
+  double rapid_mm_s_;
+  std::optional<Eigen::Vector3d> at_;
+  double seconds_ = 0.0;
+};
+
 // A G-code program's segments, built as the stream reaches them: the machine holds one chain of
 // moves at a time, not the program, and of a chain longer than window_blocks only what lies
 // around the planner. The program is read and its segments built once before, so that a bad
-// block or corner is reported before anything moves.
+// block or corner, or a program that runs for more than a job may take, is reported before
+// anything moves. `cancel` stops those reads.
 class GcodeProducer {
  public:
-  GcodeProducer(const Job& job, const Machine& machine) : file_(job.path.gcode_file) {
+  GcodeProducer(const Job& job, const Machine& machine, Cancel* cancel)
+      : file_(job.path.gcode_file) {
     const GcodeInterpreter which = job.path.gcode.interpreter;
     const std::shared_ptr<const ToolTable>& tools = job.path.gcode.tool_table;
+    // A read that fails because it was cancelled says so.
+    const auto checked = [cancel](auto&& read) {
+      try {
+        read();
+      } catch (const Error&) {
+        if (cancel != nullptr) cancel->ThrowIfRequested();
+        throw;
+      }
+      if (cancel != nullptr) cancel->ThrowIfRequested();
+    };
     // In the order `dtis run` finds them: bad blocks, rotary words the machine lacks, corners.
     std::array<bool, 3> uses_rotary{};
-    {
-      GcodeReader blocks(file_, which, tools);
-      while (blocks.Next()) {
+    checked([&] {
+      GcodeReader blocks(file_, which, tools, cancel);
+      ProgramDuration duration(file_, RapidFeed(job.path.gcode, machine));
+      while (const auto m = blocks.Next()) {
+        duration.Add(*m);
+        if (cancel != nullptr) cancel->ThrowIfRequested();
       }
       uses_rotary = blocks.UsesRotary();
-    }
-    const auto build = [&](GcodeReader& reader) {
-      return std::make_unique<GcodeSegments>([&reader] { return reader.Next(); }, file_,
-                                             uses_rotary, machine, job.vpop, job.path.gcode);
+    });
+    const auto build = [&](GcodeReader& reader, Cancel* stop) {
+      return std::make_unique<GcodeSegments>(
+          [&reader, stop] {
+            if (stop != nullptr) stop->ThrowIfRequested();
+            return reader.Next();
+          },
+          file_, uses_rotary, machine, job.vpop, job.path.gcode);
     };
     // Which long chains turn the tool: they are smoothed as 5-axis chains from their first move.
     std::vector<bool> five_axis;
-    {
-      GcodeReader reader(file_, which, tools);
-      const auto scan = build(reader);
+    checked([&] {
+      GcodeReader reader(file_, which, tools, cancel);
+      const auto scan = build(reader, cancel);
       scan->ScanOnly();
       while (const auto s = scan->Next()) {
         if (s->windowed) five_axis.push_back(s->five_axis);
       }
-    }
-    {
-      GcodeReader reader(file_, which, tools);
-      const auto all = build(reader);
+    });
+    checked([&] {
+      GcodeReader reader(file_, which, tools, cancel);
+      const auto all = build(reader, cancel);
       all->SetWindowedFiveAxis(five_axis);
       while (const auto s = all->Next()) {
         if (s->windowed) static_cast<const geometry::G1Path&>(*s->path).Check();
       }
-    }
+    });
+    // What streams: read when the stream gets there, after `cancel` may be gone.
     reader_ = std::make_unique<GcodeReader>(file_, which, tools);
-    segments_ = build(*reader_);
+    segments_ = build(*reader_, nullptr);
     segments_->SetWindowedFiveAxis(std::move(five_axis));
   }
   std::optional<StreamSegment> operator()() {
@@ -180,13 +249,15 @@ class GcodeProducer {
 // A surface job: pass 1, the links from where it really ended to pass 2, pass 2, ...
 class SurfaceSegments final : public SegmentSource {
  public:
-  SurfaceSegments(const Job& job, const Machine& machine, std::optional<AxisVector> from)
+  SurfaceSegments(const Job& job, const Machine& machine, std::optional<AxisVector> from,
+                  Cancel* cancel)
       : setup_(SetUpSurface(job)),
         linker_(machine, setup_.link_options, setup_.clearance_mm, setup_.link_corners),
         from_(std::move(from)) {
     double length_mm = 0.0;
     for (const auto& pass : setup_.passes.passes) length_mm += pass->Length().value_or(0.0);
     CheckMotionBound(job, length_mm);
+    if (cancel != nullptr) cancel->ThrowIfRequested();
   }
   void StartFrom(const std::optional<AxisVector>& from) override { from_ = from; }
   std::string Notes() const override { return setup_.passes.UnreachableText(8); }
@@ -224,15 +295,18 @@ class SurfaceSegments final : public SegmentSource {
 
 std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machine,
                                            const std::optional<AxisVector>& from,
-                                           double clearance_mm) {
+                                           double clearance_mm, Cancel* cancel) {
+  if (cancel != nullptr) cancel->ThrowIfRequested();
   if (job.interpolator != InterpolatorKind::kVpop) {
     throw Error("{}: only VPOp jobs can be streamed (the Taylor interpolators are baselines)",
                 job.file);
   }
-  if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from);
+  if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from, cancel);
   ListSegments::Producer next;
   if (job.path.kind == PathSpec::Kind::kGcode) {
-    next = [producer = std::make_shared<GcodeProducer>(job, machine)] { return (*producer)(); };
+    next = [producer = std::make_shared<GcodeProducer>(job, machine, cancel)] {
+      return (*producer)();
+    };
   } else {
     std::shared_ptr<const PathSource> path = BuildPath(job);
     CheckMotionBound(job, path->Length().value_or(0.0));
@@ -520,6 +594,8 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
       error = e.what();
     } catch (const std::exception& e) {
       error = fmt::format("internal error: {}", e.what());
+    } catch (...) {
+      error = "internal error: an unknown exception";
     }
     std::lock_guard lock(sh.mutex);
     sh.planner_done = true;
@@ -661,13 +737,27 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
                                   static_cast<double>(a - o_.low_water_periods) * o_.period_s));
     }
   } catch (...) {
+    // The output failed (its reader is gone): the machine got what was written, which the
+    // recording keeps, the evidence of how far it went.
     Abort();
     planner.join();
+    if (record) {
+      record->Commit();
+      recorded_ = true;
+    }
     throw;
   }
   if (result.end != StreamEnd::kComplete) Abort();
   planner.join();
-  out.Close();
+  try {
+    out.Close();
+  } catch (...) {
+    if (record) {
+      record->Commit();
+      recorded_ = true;
+    }
+    throw;
+  }
 
   result.rows = written;
   result.segments = status_.segments_planned;
@@ -677,7 +767,10 @@ StreamResult Stream::Run(SegmentSource& segments, CncOutput& out, SetpointWriter
   if (any) result.last_q = last.stop && result.stop_rows > 0 ? last.stop->back().q : last.sp.q;
   if (written >= 2) result.verify = verifier.Report();
   result.wall_s = std::chrono::duration<double>(Clock::now() - started).count();
-  if (record) record->Commit();
+  if (record) {
+    record->Commit();
+    recorded_ = true;
+  }
   return result;
 }
 

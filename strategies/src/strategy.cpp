@@ -39,6 +39,7 @@ struct Candidate {
   double length = 0.0;
   double order = 0.0;  // position of the start along the travel, to sort passes of one line
   std::vector<Bridge> bridges;
+  std::vector<double> knot_lines;  // arc lengths where the trace crosses a knot line of the face
   std::vector<Gap> gaps;  // sorted by arc length: the crossing's passes are the pieces between
 };
 
@@ -107,9 +108,13 @@ class Builder {
           for (double* x : {&b.s_start, &b.s_in, &b.s_out, &b.s_exit}) *x -= s0;
           bridges.push_back(b);
         }
-        list.passes.push_back(
-            std::make_unique<SurfacePass>(e, static_cast<int>(list.passes.size()) + 1, from, to,
-                                          s1 - s0, spec_.newton, std::move(bridges)));
+        std::vector<double> knot_lines;
+        for (const double k : c.knot_lines) {
+          if (k > s0 && k < s1) knot_lines.push_back(k - s0);
+        }
+        list.passes.push_back(std::make_unique<SurfacePass>(
+            e, static_cast<int>(list.passes.size()) + 1, from, to, s1 - s0, spec_.newton,
+            std::move(bridges), std::move(knot_lines)));
         list.passes.back()->SetRidesOverFromPrevious(rides);
         return true;
       };
@@ -647,10 +652,37 @@ class Builder {
         s += c.x_unfit;
         continue;
       }
+      AddKnotLines(e, cur, next, s, h, &cand->knot_lines);
       s += h;
       cur = next;
       h = std::min(full, 2.0 * h);
     }
+  }
+
+  // The knot lines of the face the step of h mm from `from` (at arc length s) to `to` crosses:
+  // the arc length of each crossing, found by bisection on the step to 1e-9 mm.
+  void AddKnotLines(const PassEvaluator& e, const ContactPoint& from, const ContactPoint& to,
+                    double s, double h, std::vector<double>* out) const {
+    std::vector<double> found;
+    for (const int axis : {0, 1}) {
+      const std::vector<double>& knots = axis == 0 ? face_.UKnotLines() : face_.VKnotLines();
+      const double a = from.uv[axis], b = to.uv[axis];
+      for (const double k : knots) {
+        if (!((a < k && b >= k) || (a > k && b <= k))) continue;
+        double lo = 0.0, hi = h;
+        ContactPoint p;
+        EvalStatus st;
+        int its = 0;
+        while (hi - lo > 1e-9) {
+          const double mid = 0.5 * (lo + hi);
+          if (!e.Step(from, mid, spec_.newton, &p, &st, &its)) break;
+          ((p.uv[axis] - k) * (a - k) > 0.0 ? lo : hi) = mid;
+        }
+        found.push_back(s + 0.5 * (lo + hi));
+      }
+    }
+    std::sort(found.begin(), found.end());
+    out->insert(out->end(), found.begin(), found.end());
   }
 
   // One step of about `h` mm of the contact point along the strategy's line on the face (not of

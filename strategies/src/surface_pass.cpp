@@ -375,14 +375,15 @@ Eigen::Vector3d Bridge::Tip(double s) const {
 
 SurfacePass::SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
                          const ContactPoint& end, double length, const NewtonOptions& options,
-                         std::vector<Bridge> bridges)
+                         std::vector<Bridge> bridges, std::vector<double> knot_lines)
     : eval_(evaluator),
       index_(index),
       start_(start),
       end_(end),
       length_(length),
       options_(options),
-      bridges_(std::move(bridges)) {}
+      bridges_(std::move(bridges)),
+      knot_lines_(std::move(knot_lines)) {}
 
 const Bridge* SurfacePass::BridgeAt(double s) const {
   for (const Bridge& f : bridges_) {
@@ -409,6 +410,10 @@ std::vector<double> SurfacePass::Breaks(double s0, double s1) const {
       if (b >= s0 && b <= s1) out.push_back(b);
     }
   }
+  for (const double k : knot_lines_) {
+    if (k >= s0 && k <= s1) out.push_back(k);
+  }
+  std::sort(out.begin(), out.end());
   return out;
 }
 

@@ -12,7 +12,11 @@
 // which the NLP then improves. A second solve with N = round(T / period) brings h back to about
 // the job's period.
 //
+// A surface job of one pass (max_passes = 1, or a face and strategy that make one) is solved on
+// that pass, with the pass's own options (its feed, the job's period).
+//
 //   dtis_min_time samples/jobs/trident.toml [--feed-mm-min 5000]
+//   dtis_min_time samples/jobs/surface_tilt10_xyzac.toml
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -29,6 +33,7 @@
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
+#include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
 
 namespace {
@@ -38,39 +43,52 @@ using Ipopt::Number;
 
 struct Collect final : dtis::interp::SetpointSink {
   std::vector<double> s;
-  void Accept(const dtis::interp::Setpoint& sp) override { s.push_back(sp.s); }
+  dtis::AxisVector first_q;  // the axes at the start, which pick the rotary axes' branch
+  void Accept(const dtis::interp::Setpoint& sp) override {
+    if (s.empty()) first_q = sp.q;
+    s.push_back(sp.s);
+  }
 };
 
 // Axis positions along the path, with their derivative by central differences.
 class Positions {
  public:
-  Positions(const dtis::PathSource& path, const dtis::Machine& machine)
-      : path_(path), machine_(machine), n_(machine.AxisCount()) {}
+  // `start_q`: the axes at the path's start, which select the inverse's branch.
+  Positions(const dtis::PathSource& path, const dtis::Machine& machine,
+            const dtis::AxisVector& start_q)
+      : path_(path), machine_(machine), n_(machine.AxisCount()), start_q_(start_q) {}
   int Axes() const { return n_; }
-  // q(s) and dq/ds(s); `hint` keeps the state of the last evaluation near s.
-  void At(double s, dtis::PathState* hint, dtis::AxisVector* q, dtis::AxisVector* dq) const {
+  // Where a march along the path starts (a surface pass's Newton needs a state on the pass).
+  dtis::PathState Start() const { return path_.Start(); }
+  // q(s) and dq/ds(s); `hint` keeps the state of the last evaluation near s, `near` the axes
+  // there (they pick the rotary axes' branch).
+  void At(double s, dtis::PathState* hint, const dtis::AxisVector& near, dtis::AxisVector* q,
+          dtis::AxisVector* dq) const {
     const double length = *path_.Length();
     const double eps = 1e-5;
+    s = std::clamp(s, 0.0, length);
     const double a = std::max(0.0, s - eps), b = std::min(length, s + eps);
     const auto eval = [&](double x, dtis::AxisVector* out) {
       const dtis::PathSample p = path_.At(*hint, x);
       *hint = p.state;
-      const dtis::InverseResult r = machine_.Inverse(p.pose, last_ ? &*last_ : nullptr, out);
-      if (r.status != dtis::InverseStatus::kOk) throw dtis::Error("inverse failed at s = {}", x);
+      const dtis::InverseResult r = machine_.Inverse(p.pose, &near, out);
+      if (r.status != dtis::InverseStatus::kOk) {
+        throw dtis::Error("at s = {} mm: {}", x, dtis::DescribeInverseFailure(machine_, r));
+      }
     };
     dtis::AxisVector qa, qb;
     eval(a, &qa);
     eval(b, &qb);
-    eval(std::clamp(s, 0.0, length), q);
-    last_ = *q;
+    eval(s, q);
     *dq = (qb - qa) / (b - a);
   }
+  const dtis::AxisVector& StartAxes() const { return start_q_; }
 
  private:
   const dtis::PathSource& path_;
   const dtis::Machine& machine_;
   int n_;
-  mutable std::optional<dtis::AxisVector> last_;
+  dtis::AxisVector start_q_;
 };
 
 // Variables: s_1 .. s_{N-1}, then h in ms.
@@ -81,7 +99,7 @@ class MinTime final : public Ipopt::TNLP {
       : q_(q), length_(length), feed_(feed), start_(std::move(s0)), h0_(h0_ms) {
     N_ = static_cast<int>(start_.size()) - 1;  // s_0 .. s_N
     for (const auto& a : machine.Axes()) limits_.push_back({a.vmax, a.amax, a.jmax});
-    states_.assign(start_.size(), dtis::PathState{});
+    states_.assign(start_.size(), q_.Start());
   }
   std::vector<double> solution;
   double solution_h_ms = 0.0;
@@ -102,7 +120,13 @@ class MinTime final : public Ipopt::TNLP {
   }
   bool get_bounds_info(Index n, Number* x_l, Number* x_u, Index m, Number* g_l,
                        Number* g_u) override {
-    for (Index k = 0; k < n - 1; ++k) x_l[k] = 0.0, x_u[k] = length_;
+    // The feed rows (>= 0) keep the arc lengths between s_0 = 0 and s_N = length at every
+    // feasible point; the bounds only keep iterates near the path (positions are clamped to it).
+    // Bounds at 0 and the length would have IPOPT push the start inside them by 1 % of the
+    // length (bound_push), off the planner's motion: rows at rest at the end moved 0.13 mm back
+    // on a 13 mm surface pass, a jerk 336 000 times its limit to start from.
+    const double margin = 1.0 + 0.1 * length_;
+    for (Index k = 0; k < n - 1; ++k) x_l[k] = -margin, x_u[k] = length_ + margin;
     x_l[n - 1] = 1e-3 * h0_, x_u[n - 1] = 10.0 * h0_;
     for (Index r = 0; r < m; ++r) {
       const bool feed_row = (r % PerRow()) == PerRow() - 1;
@@ -127,7 +151,7 @@ class MinTime final : public Ipopt::TNLP {
     return true;
   }
   bool eval_g(Index, const Number* x, bool new_x, Index m, Number* g) override {
-    if (new_x || !evaluated_) Evaluate(x);
+    if ((new_x || !evaluated_) && !TryEvaluate(x)) return false;
     for (Index r = 0; r < m; ++r) g[r] = values_[static_cast<std::size_t>(r)];
     return true;
   }
@@ -144,7 +168,7 @@ class MinTime final : public Ipopt::TNLP {
           nullptr);
       return true;
     }
-    if (new_x || !evaluated_) Evaluate(x);
+    if ((new_x || !evaluated_) && !TryEvaluate(x)) return false;
     ForEachEntry([&](int, int, double v) { values[e++] = v; }, x);
     return true;
   }
@@ -170,14 +194,31 @@ class MinTime final : public Ipopt::TNLP {
   }
   static bool IsVariable(int k, int N) { return k >= 1 && k <= N - 1; }
 
+  // Evaluate, or false (the reason on stderr) where the path or the machine refuses a point:
+  // IPOPT then tries a shorter step.
+  bool TryEvaluate(const Number* x) {
+    try {
+      Evaluate(x);
+      return true;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "dtis_min_time: an evaluation failed: %s\n", e.what());
+      evaluated_ = false;
+      return false;
+    }
+  }
+
   void Evaluate(const Number* x) {
     const int n = q_.Axes();
     qs_.resize(static_cast<std::size_t>(N_) + 1);
     dqs_.resize(static_cast<std::size_t>(N_) + 1);
     for (int k = 0; k <= N_; ++k) {
       const auto i = static_cast<std::size_t>(k);
-      q_.At(S(x, k), &states_[i], &qs_[i], &dqs_[i]);
+      // The first evaluation marches along the rows in order, each from the one before.
+      if (!marched_ && k > 0) states_[i] = states_[i - 1];
+      const dtis::AxisVector near = marched_ ? qs_[i] : (k > 0 ? qs_[i - 1] : q_.StartAxes());
+      q_.At(S(x, k), &states_[i], near, &qs_[i], &dqs_[i]);
     }
+    marched_ = true;
     const double h = x[N_ - 1] * 1e-3;
     values_.assign(static_cast<std::size_t>(Rows() * PerRow()), 0.0);
     const auto Q = [&](int k) -> const dtis::AxisVector& {
@@ -245,6 +286,7 @@ class MinTime final : public Ipopt::TNLP {
   int N_ = 0;
   std::vector<Limits> limits_;
   std::vector<dtis::PathState> states_;
+  bool marched_ = false;
   std::vector<dtis::AxisVector> qs_, dqs_;
   std::vector<double> values_;
   bool evaluated_ = false;
@@ -293,7 +335,8 @@ int main(int argc, char** argv) {
   double feed_mm_min = 0.0;
   int max_iter = 3000;
   bool verbose = false;
-  app.add_option("job", job_file, "job file (line, curve or G-code path)")->required();
+  app.add_option("job", job_file, "job file (line, curve, or a surface job of one pass)")
+      ->required();
   app.add_option("--feed-mm-min", feed_mm_min, "programmed feed instead of the job's");
   app.add_option("-o", out, "write the optimal setpoints (CSV) here");
   app.add_option("--arc-length", arc_out, "write the arc length of each row (one per line) here");
@@ -304,26 +347,43 @@ int main(int argc, char** argv) {
     auto job = dtis::io::LoadJob(job_file);
     if (feed_mm_min > 0.0) job.vpop.feed_mm_s = feed_mm_min / 60.0;
     const auto machine = dtis::io::LoadJobMachine(job);
-    const auto path = dtis::io::BuildPath(job);
+    std::shared_ptr<const dtis::PathSource> path;
+    dtis::interp::VpopOptions o = job.vpop;
+    std::unique_ptr<dtis::io::SegmentSource> segments;  // holds the face the pass is traced on
+    if (job.surface) {
+      // The job's one pass, traced as `dtis run` traces it.
+      segments = dtis::io::JobSegments(job, *machine);
+      std::optional<dtis::io::StreamSegment> pass = segments->Next(std::nullopt);
+      if (!pass || pass->pass < 0 || segments->Next(std::nullopt)) {
+        throw dtis::Error(
+            "{}: dtis_min_time solves a surface job of one pass (set [strategy] max_passes = 1)",
+            job.file);
+      }
+      path = pass->path;
+      o = pass->options;
+      if (feed_mm_min > 0.0) o.feed_mm_s = feed_mm_min / 60.0;
+    } else {
+      path = dtis::io::BuildPath(job);
+    }
     path->Reach(INFINITY);
-    const double length = path->Length().value();
-    const double dt = job.vpop.period_s;
+    if (!path->Length()) throw dtis::Error("{}: the path's length is not known", job.file);
+    const double length = *path->Length();
+    const double dt = o.period_s;
 
     // A feasible start: the job's planner (any feasible sequence would do).
     Collect planned;
-    dtis::interp::VpopOptions o = job.vpop;
     dtis::interp::PlanVpop(*path, *machine, o, planned);
     std::vector<double> s = planned.s;
     while (s.size() > 2 && s[s.size() - 2] == length) s.pop_back();
     const double start_time = static_cast<double>(s.size() - 1) * dt;
 
-    const Positions q(*path, *machine);
-    Solved a = Solve(q, *machine, length, job.vpop.feed_mm_s, s, dt * 1e3, max_iter, verbose);
+    const Positions q(*path, *machine, planned.first_q);
+    Solved a = Solve(q, *machine, length, o.feed_mm_s, s, dt * 1e3, max_iter, verbose);
     const double t1 = static_cast<double>(a.s.size() - 1) * a.h_ms * 1e-3;
     // Again with about the job's period.
     const int n2 = static_cast<int>(std::lround(t1 / dt));
-    Solved b = Solve(q, *machine, length, job.vpop.feed_mm_s, Resample(a.s, n2), t1 / n2 * 1e3,
-                     max_iter, verbose);
+    Solved b = Solve(q, *machine, length, o.feed_mm_s, Resample(a.s, n2), t1 / n2 * 1e3, max_iter,
+                     verbose);
     const double h = b.h_ms * 1e-3;
     const double t2 = n2 * h;
 
@@ -347,7 +407,7 @@ int main(int argc, char** argv) {
     emit(length);
     const auto report = dtis::interp::Verify(table.Table(), *machine);
     std::printf("job              %s, feed %.6g mm/min, path %.6g mm\n", job.name.c_str(),
-                job.vpop.feed_mm_s * 60.0, length);
+                o.feed_mm_s * 60.0, length);
     std::printf("feasible start   %.6f s (planner %s)\n", start_time,
                 dtis::interp::PlannerName(o.planner));
     std::printf("first solve      %.6f s, %zu periods of %.6f ms (IPOPT status %d)\n", t1,

@@ -51,6 +51,11 @@ class FaceSurface {
   double V0() const { return v0_; }
   double V1() const { return v1_; }
   bool Trimmed() const { return trimmed_; }
+  // The parameters of the knot lines inside the UV box across which the surface's third
+  // derivatives may jump (a B-spline's interior knots of multiplicity above degree - 3: every knot
+  // of a cubic), sorted; none for other surfaces. A pass crossing one is a break of its path.
+  const std::vector<double>& UKnotLines() const { return u_knots_; }
+  const std::vector<double>& VKnotLines() const { return v_knots_; }
   // Evaluated by dtis' own B-spline kernel (BSplineSurfaceSpans), not OpenCASCADE's adaptor.
   bool OwnKernel() const { return spans_.has_value(); }
   // (u, v) lies in the face's domain: its UV box, and inside its trimming loops for a trimmed face.
@@ -86,6 +91,7 @@ class FaceSurface {
   mutable std::optional<BSplineSurfaceSpans> spans_;  // B-spline faces it takes; else surface_
   double u0_ = 0, u1_ = 0, v0_ = 0, v1_ = 0;
   bool trimmed_ = false;
+  std::vector<double> u_knots_, v_knots_;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;
 
   // Which cells of an n x n grid over the UV box the trimming loops do not come near, and on

@@ -11,7 +11,6 @@
 
 #include <Eigen/Core>
 #include <array>
-#include <atomic>
 #include <cstdint>
 #include <iosfwd>
 #include <memory>
@@ -23,6 +22,7 @@
 
 namespace dtis::io {
 
+class Cancel;  // cancel.hpp
 class Rs274Reader;
 struct ToolTable;  // tool_table.hpp
 
@@ -80,14 +80,11 @@ struct GcodeProgram {
 // does not end.
 struct GcodeReadOptions {
   // The most blocks read, each repetition of a loop counted (LinuxCNC's interpreter: blocks
-  // executed, subroutine calls and loops included); 0: no limit. Going past it throws
-  // dtis::Error "<file>:<line>: the program runs more than N blocks ...".
+  // executed, subroutine calls and loops included; dtis' reader: lines that are not empty); 0: no
+  // limit. Past it, Next() throws dtis::Error "<file>:<line>: the program runs more than N
+  // blocks ...", naming the first block past them.
   long max_blocks = kDefaultMaxBlocks;
-  // Set from any thread to stop a read: Next() then throws dtis::Error "<file>: reading
-  // stopped". Looked at before every block, and at least every 0.1 s while LinuxCNC's
-  // interpreter computes without writing a move. nullptr: never stopped.
-  const std::atomic<bool>* cancel = nullptr;
-  // Added to the message when max_blocks is passed: what the user can do about it.
+  // Added to that message: what the user can do about it.
   std::string remedy;
   // A bound on loops that never end, for a reader that holds nothing (a stream): 100 million
   // blocks take dtis' reader under a minute. What a reader that holds the program takes is
@@ -102,9 +99,11 @@ class GcodeReader {
   // Reads the file at `path` (throws when it cannot be opened) with `interpreter`. With a tool
   // table (LinuxCNC's interpreter only), G43 and G43.2 apply its tool length offsets to the moves
   // that follow, as LinuxCNC does; without one, G43 is noted and the programmed tip is planned.
+  // `cancel` (which must outlive the reader), once requested, stops LinuxCNC's interpreter at once,
+  // even one that runs without a move: Next() then throws (check `cancel` between moves).
   explicit GcodeReader(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
-                       std::shared_ptr<const ToolTable> tools = nullptr,
+                       std::shared_ptr<const ToolTable> tools = nullptr, Cancel* cancel = nullptr,
                        const GcodeReadOptions& options = {});
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
   GcodeReader(std::string_view text, const std::string& source_name,

@@ -20,6 +20,7 @@
 #include "dtis/core/path_source.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
+#include "dtis/io/cancel.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 
@@ -54,10 +55,13 @@ class SegmentSource {
 // contours and rapids of a G-code program, the one path of a line or curve job). When `from` is
 // given and differs from the job's start, a link (retract, traverse at a safe height, plunge)
 // leads from there first. `safe_z_mm`: the traverse height of such a link (surface jobs: the
-// job's own; others: above both ends by `clearance_mm`).
+// job's own; others: above both ends by `clearance_mm`). A G-code program is read whole first,
+// and refused when its moves take more than a job may (interp::kMaxMotionS), an endless loop
+// too. `cancel` (which must outlive the call), once requested, makes it throw soon (a surface
+// job: once its passes are traced).
 std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machine,
                                            const std::optional<AxisVector>& from = std::nullopt,
-                                           double clearance_mm = 5.0);
+                                           double clearance_mm = 5.0, Cancel* cancel = nullptr);
 
 // ---- where setpoints go
 
@@ -168,8 +172,12 @@ class Stream {
 
   // Plans `segments` on a worker thread and writes every setpoint to `out` (and to `record`,
   // committed at the end, with t = row * period) on the calling thread until the job ends, Abort()
-  // is called or the planner fails or falls behind. Ends at rest in every case.
+  // is called or the planner fails or falls behind. Ends at rest in every case but one: `out`
+  // fails (its reader gone), when it throws that error after committing `record` with the rows
+  // written until then (Recorded() tells), the evidence of what the machine may have received.
   StreamResult Run(SegmentSource& segments, CncOutput& out, SetpointWriter* record = nullptr);
+  // Whether Run committed its recording (also when it threw).
+  bool Recorded() const { return recorded_; }
 
   // From any thread: end the stream as soon as the stop allows.
   void Abort();
@@ -186,6 +194,7 @@ class Stream {
   StreamStatus status_;
   std::atomic<bool> abort_{false};
   std::atomic<bool> paused_{false};
+  bool recorded_ = false;
   std::unique_ptr<Shared> shared_;
 };
 

@@ -190,14 +190,17 @@ class SurfacePass final : public PathSource {
  public:
   // `start` and `end` lie on the face's boundary, `length` is the tip arc length between them.
   // `bridges`: where the pass is not followed by contact point, sorted by arc length.
+  // `knot_lines`: the arc lengths where it crosses a knot line of the face (FaceSurface::
+  // UKnotLines), sorted.
   SurfacePass(const PassEvaluator& evaluator, int index, const ContactPoint& start,
               const ContactPoint& end, double length, const NewtonOptions& options,
-              std::vector<Bridge> bridges = {});
+              std::vector<Bridge> bridges = {}, std::vector<double> knot_lines = {});
 
   PathState Start() const override;
   std::optional<double> Length() const override { return length_; }
   PathSample At(const PathState& from, double s) const override;
-  // The ends of the flat pieces' chords (where the tip path's curvature jumps).
+  // The ends of the flat pieces' chords (where the tip path's curvature jumps) and the knot lines
+  // the pass crosses (where the face's third derivatives, and so the axes' jerk, may jump).
   std::vector<double> Breaks(double s0, double s1) const override;
   std::string Describe(const PathState& state) const override;
 
@@ -211,6 +214,7 @@ class SurfacePass final : public PathSource {
   Pose StartPose() const;
   Pose EndPose() const;
   const PassEvaluator& Evaluator() const { return eval_; }
+  const std::vector<double>& KnotLines() const { return knot_lines_; }
   // The contact point of a state of this pass, for tests and reports.
   EvalStatus Evaluate(const PathState& state, ContactPoint* out) const;
 
@@ -226,6 +230,7 @@ class SurfacePass final : public PathSource {
   double length_;
   NewtonOptions options_;
   std::vector<Bridge> bridges_;
+  std::vector<double> knot_lines_;
   bool rides_over_ = false;
   // The last state stepped from and the last result: the planner asks several trial arc lengths
   // from the same state, then steps from one of the results.
