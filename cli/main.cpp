@@ -164,6 +164,25 @@ void ApplyJerkTime(double ms, dtis::io::Job* job) {
   job->machine_options.jerk_time_s = ms * 1e-3;
 }
 
+// Numeric options: a finite number in range, the message printing the value as given and the
+// bounds short (CLI11's PositiveNumber and NonNegativeNumber print their bounds as 309-digit
+// numbers and let NaN through).
+CLI::Validator NumberCheck(bool zero_allowed) {
+  return CLI::Validator(
+      [zero_allowed](std::string& input) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(input, v) || !std::isfinite(v) || v < 0.0 ||
+            (v == 0.0 && !zero_allowed)) {
+          return fmt::format("expected a finite number {} 0, got '{}'", zero_allowed ? ">=" : ">",
+                             input);
+        }
+        return {};
+      },
+      zero_allowed ? "NONNEGATIVE" : "POSITIVE");
+}
+const CLI::Validator kPositive = NumberCheck(false);
+const CLI::Validator kNonNegative = NumberCheck(true);
+
 const char* const kPlannerHelp =
     "lookahead (the exact step capped by the viable feeds ahead; the default) or vpop (the "
     "paper's back-off); overrides the job's [interpolator] planner";
@@ -569,10 +588,11 @@ int Stream(const StreamArgs& a) {
   return r.end == dtis::io::StreamEnd::kComplete ? 0 : kExitStreamEndedEarly;
 }
 
-// --jerk-time-ms: for LinuxCNC INI machines without MAX_JERK (0: not given).
+// --jerk-time-ms: for LinuxCNC INI machines without MAX_JERK (0: not given; the machine's reader
+// refuses any other value out of range, NaN included).
 dtis::kinematics::MachineLoadOptions JerkTime(double ms) {
   dtis::kinematics::MachineLoadOptions o;
-  if (ms > 0.0) o.jerk_time_s = ms * 1e-3;
+  if (ms != 0.0) o.jerk_time_s = ms * 1e-3;
   return o;
 }
 
@@ -762,8 +782,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"vpop", "lookahead"}));
   run->add_option("-j,--threads", ra_run.threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
-      ->check(CLI::NonNegativeNumber);
-  run->add_option("--jerk-time-ms", ra_run.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+      ->check(kNonNegative);
+  run->add_option("--jerk-time-ms", ra_run.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   run->add_option("--from", ra_run.from,
                   "G-code jobs: where the machine is, X,Y,Z[,A,C] (mm, deg): the program starts "
                   "there (default: the job's [path] from, else the origin)");
@@ -790,9 +810,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"both", "vpop", "lookahead"}))
       ->capture_default_str();
   compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
-  compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
-  compare->add_option("--jerk-time-ms", ca.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")->check(kNonNegative);
+  compare->add_option("--jerk-time-ms", ca.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* faces = app.add_subcommand(
       "faces",
@@ -811,8 +830,7 @@ int main(int argc, char** argv) {
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
   verify->add_option("MACHINE", machine, "machine file (see samples/machines/) or LinuxCNC INI")
       ->required();
-  verify->add_option("--jerk-time-ms", verify_jerk_time_ms, kJerkTimeHelp)
-      ->check(CLI::PositiveNumber);
+  verify->add_option("--jerk-time-ms", verify_jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* machine_cmd =
       app.add_subcommand("machine", "Machines: import a LinuxCNC INI file as a dtis machine file.");
@@ -825,8 +843,7 @@ int main(int argc, char** argv) {
   double import_jerk_time_ms = 0.0;
   import->add_option("INI", import_from, "LinuxCNC INI file (or a machine file)")->required();
   import->add_option("-o,--output", import_output, "machine file to write (default: stdout)");
-  import->add_option("--jerk-time-ms", import_jerk_time_ms, kJerkTimeHelp)
-      ->check(CLI::PositiveNumber);
+  import->add_option("--jerk-time-ms", import_jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* report = app.add_subcommand(
       "report",
@@ -838,7 +855,7 @@ int main(int argc, char** argv) {
   ReportArgs ra;
   report->add_option("FILE", ra.setpoints, "setpoint CSV")->required();
   report->add_option("MACHINE", ra.machine, "machine file (default: the --job's)");
-  report->add_option("--jerk-time-ms", ra.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  report->add_option("--jerk-time-ms", ra.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   report->add_option("-o,--output", ra.output, "HTML file (default: FILE with .html)");
   report->add_option("--job", ra.job,
                      "the job the setpoints came from: its machine, programmed feed and, for a "
@@ -878,7 +895,7 @@ int main(int argc, char** argv) {
   stream->add_option("--to", sa.to, kStreamToHelp)->capture_default_str();
   stream->add_option("--buffer", sa.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   stream
       ->add_option("--horizon", sa.horizon,
                    "steps the planner keeps open to back-off before handing them over (default: "
@@ -890,7 +907,7 @@ int main(int argc, char** argv) {
                    "in real time: when the planner has nothing new and the machine holds fewer "
                    "periods than this, play the stop (an underrun)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   stream
       ->add_option("--pace", sa.pace,
                    "realtime: write at the machine's pace; none: as fast as the output takes "
@@ -910,10 +927,10 @@ int main(int argc, char** argv) {
   stream
       ->add_option("--slow-planner-us", sa.slow_planner_us,
                    "testing: the planner sleeps this long per setpoint (to make it fall behind)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   stream->add_option("--planner", sa.planner, kPlannerHelp)
       ->check(CLI::IsMember({"vpop", "lookahead"}));
-  stream->add_option("--jerk-time-ms", sa.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  stream->add_option("--jerk-time-ms", sa.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   stream->add_flag("-q,--quiet", sa.quiet, "print nothing on success");
 
   auto* serve = app.add_subcommand(
@@ -926,14 +943,14 @@ int main(int argc, char** argv) {
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
       ->required();
-  serve->add_option("--jerk-time-ms", va.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  serve->add_option("--jerk-time-ms", va.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   serve->add_option("--to", va.to, kStreamToHelp)->capture_default_str();
   serve->add_option("--buffer", va.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   serve->add_option("--low-water", va.low_water, "underrun threshold, periods")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   serve->add_option("--pace", va.pace, "realtime or none")
       ->capture_default_str()
       ->check(CLI::IsMember({"realtime", "none"}));

@@ -876,5 +876,30 @@ TEST(PathSource, AnArcLengthARoundingErrorFromAKnownStateIsThatState) {
                                 "lock G1 chain");
 }
 
+// A program's least time (each move's chord at its F, rapids at the rapid feed, dwells) is summed
+// as it is read, and the block at which it passes a day is an error naming it and what it takes.
+TEST(GcodePlan, TheLeastTimeOfAProgramIsBoundedNamingTheBlock) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  interp::VpopOptions base;
+  base.feed_mm_s = 1.0;
+  io::GcodeOptions options;
+  const io::GcodeProgram ok = io::ParseGcode("G0 X0 Y0\nG1 X10 F600\nG0 X20\nM2\n", "p.ngc");
+  const io::GcodePlan plan = io::BuildGcodePlan(ok, *machine, base, options);
+  // 10 mm at 10 mm/s, then 10 mm at the machine's rapid feed (sqrt(3) x 500 mm/s).
+  EXPECT_NEAR(plan.least_time_s, 1.0 + 10.0 / (std::sqrt(3.0) * 500.0), 1e-12);
+  test::ExpectError(
+      [&] {
+        io::BuildGcodePlan(io::ParseGcode("G0 X0 Y0\nG1 X10 F600\nG1 X15 F0.0001\nM2\n", "p.ngc"),
+                           *machine, base, options);
+      },
+      "p.ngc:3: the program takes at least 833 h up to this block, more than the 24 h a job may "
+      "take; this block alone takes 833 h: its move of 5 mm at F0.0001 mm/min");
+  io::GcodeOptions crawl = options;
+  crawl.rapid_feed_mm_s = 1e-9 / 60.0;
+  test::ExpectError([&] { io::BuildGcodePlan(ok, *machine, base, crawl); },
+                    "p.ngc:3: the program takes at least 1.67e+08 h");
+}
+
 }  // namespace
 }  // namespace dtis

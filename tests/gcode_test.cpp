@@ -16,9 +16,9 @@
 namespace dtis::io {
 namespace {
 
-std::string ErrorOf(const std::string& text) {
+std::string ErrorOf(const std::string& text, const GcodeReadOptions& options = {}) {
   try {
-    ParseGcode(text, "p.ngc");
+    ParseGcode(text, "p.ngc", {}, options);
   } catch (const Error& e) {
     return e.what();
   }
@@ -129,6 +129,19 @@ TEST(Gcode, ReaderReportsABadBlockWhenItReachesIt) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "p.ngc:3:7: word 'Q' is not supported");
   }
+}
+
+// dtis' reader reads at most max_blocks lines, naming the first one past them.
+TEST(Gcode, ReadingIsBounded) {
+  const std::string three = "G0 X0\nG1 X1 F100\nG1 X2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 3;
+  o.remedy = "raise it";
+  EXPECT_EQ(ParseGcode(three, "p.ngc", {}, o).moves.size(), 3u);
+  EXPECT_EQ(ParseGcode(three + "\n\n", "p.ngc", {}, o).moves.size(), 3u);  // empty lines: no blocks
+  EXPECT_EQ(ErrorOf(three + "G1 X3\nM2\n", o),
+            "p.ngc:4: the program runs more than 3 blocks (each repetition of a loop counted), "
+            "the most it may run here; raise it");
 }
 
 // LinuxCNC tool tables: every word LinuxCNC writes, either case, '+' signs, comments.

@@ -12,6 +12,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/io/atomic_file.hpp"
 #include "dtis/io/curve_file.hpp"
+#include "dtis/io/gcode_program.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/setpoint_file.hpp"
 #include "test_support.hpp"
@@ -82,6 +83,89 @@ TEST(CurveFile, BadInputNamesFileLineAndItem) {
   ExpectError(
       [&] { ParseCurveFile(head + "knots = [0, 0, 0, 1, 1, 1]\npoles = [[0]]\n", "c.toml"); },
       "c.toml:3: key 'poles': point 0 is not [x, y] or [x, y, z]");
+}
+
+// A curve that stays on one point is refused as a zero-length line is.
+TEST(CurveFile, CoincidentPolesAreRefused) {
+  ExpectError(
+      [] {
+        ParseCurveFile("degree = 2\nknots = [0, 0, 0, 1, 1, 1]\npoles = [[1, 2], [1, 2], [1, 2]]\n",
+                       "c.toml");
+      },
+      "c.toml:3: key 'poles': all 3 poles coincide at (1, 2, 0): the curve has zero length");
+}
+
+// Keys that would make a run do nothing or never end are refused where they are read.
+TEST(JobFile, NonsenseIsRefusedNamingTheKey) {
+  ExpectError([] { ParseJob(kJob + "[interpolator]\nend_tolerance_mm = 1e6\n", "j.toml"); },
+              "j.toml:8: key 'interpolator.end_tolerance_mm': expected a distance up to 0.01 mm");
+  EXPECT_DOUBLE_EQ(
+      ParseJob(kJob + "[interpolator]\nend_tolerance_mm = 0.01\n", "j.toml").vpop.end_tolerance_mm,
+      0.01);
+  ExpectError([] { ParseJob(kJob + "[interpolator]\ncommit_horizon = 1099511627776\n", "j.toml"); },
+              "j.toml:8: key 'interpolator.commit_horizon': expected 8 to 1073741824 periods");
+  EXPECT_EQ(ParseJob(kJob + "[interpolator]\ncommit_horizon = 1073741824\n", "j.toml")
+                .vpop.commit_horizon,
+            std::size_t{1} << 30);
+  ExpectError([] { ParseJob("name = \"\"\n" + kJob, "j.toml"); },
+              "j.toml:1: key 'name': expected a name");
+  const std::string gcode = "machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n";
+  EXPECT_EQ(ParseJob(gcode, "j.toml").path.gcode.max_blocks, GcodeOptions::kDefaultMaxBlocks);
+  EXPECT_EQ(ParseJob(gcode + "max_blocks = 0\n", "j.toml").path.gcode.max_blocks, 0);
+  ExpectError([&] { ParseJob(gcode + "max_blocks = -1\n", "j.toml"); },
+              "j.toml:5: key 'path.max_blocks': expected 0 (no limit) or more blocks, got -1");
+}
+
+// The least time of a motion bounds it before planning: a day for every run, and for `dtis run`,
+// which holds its setpoints, kMaxRunSetpoints at the period; each error names the key.
+TEST(JobFile, RunsAreBoundedBeforePlanning) {
+  const Job line = ParseJob(kJob, "j.toml");  // 100 mm at 5000 mm/min
+  EXPECT_NO_THROW(CheckRunBound(line, 100.0));
+  Job slow = ParseJob(kJob + "[tangential]\nacceleration_mm_s2 = 1e-6\n", "j.toml");
+  EXPECT_NO_THROW(CheckMotionBound(slow, 100.0));  // 5.56 h: a stream may take it
+  ExpectError([&] { CheckRunBound(slow, 100.0); },
+              "j.toml: the path (100 mm) takes at least 5.56 h with [tangential] "
+              "acceleration_mm_s2 = 1e-06: 2e+07 setpoints at 1 ms, more than the 10 million "
+              "`dtis run` holds in memory");
+  Job taylor =
+      ParseJob(kJob + "[interpolator]\nkind = \"taylor2\"\naccel_time_s = 1e9\n", "j.toml");
+  ExpectError([&] { CheckMotionBound(taylor, 100.0); },
+              "with [interpolator] accel_time_s = 1e+09, more than the 24 h a job may take");
+  const Job gcode =
+      ParseJob("machine = \"m.toml\"\n[path]\nkind = \"gcode\"\nfile = \"p.ngc\"\n", "j.toml");
+  EXPECT_NO_THROW(CheckRunBound(gcode, 100.0, 3600.0));
+  ExpectError([&] { CheckRunBound(gcode, 100.0, 3.0 * 3600.0); },
+              "with the program's F words, rapids and dwells: 1.08e+07 setpoints");
+}
+
+// Periods too short for the machine and limits too small for the period name the key to change,
+// with the shortest period the machine allows.
+TEST(JobFile, PeriodsTheMachineCannotTakeNameTheKey) {
+  const std::string machine = test::Source("samples/machines/mikron_ucp710_xyz.toml");
+  const std::string job = "machine = \"" + machine + "\"\n" + kJob.substr(kJob.find('\n') + 1);
+  EXPECT_NO_THROW(LoadJobMachine(ParseJob(job, "j.toml")));
+  EXPECT_NO_THROW(LoadJobMachine(ParseJob("period_ms = 0.2\n" + job, "j.toml")));
+  ExpectError([&] { LoadJobMachine(ParseJob("period_ms = 0.01\n" + job, "j.toml")); },
+              {"j.toml: period_ms = 0.01 is shorter than machine 'Mikron UCP 710 XYZ",
+               "its jerk limit (5000 mm/s^3)", "expected period_ms of at least 0.166"});
+  ExpectError(
+      [&] {
+        LoadJobMachine(ParseJob(job + "[interpolator]\nlimit_fraction = 1e-300\n", "j.toml"));
+      },
+      {"j.toml: [interpolator] limit_fraction = 1e-300: at period_ms = 1 rounding the written "
+       "positions of axis X",
+       "expected a limit_fraction of at least"});
+  // The least limit_fraction it names plans.
+  const std::string fraction = job + "[interpolator]\nlimit_fraction = 1e-9\n";
+  try {
+    LoadJobMachine(ParseJob(fraction, "j.toml"));
+    FAIL() << "a limit_fraction of 1e-9 planned";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    const double least = std::stod(what.substr(what.rfind(' ') + 1));
+    EXPECT_NO_THROW(LoadJobMachine(ParseJob(
+        job + fmt::format("[interpolator]\nlimit_fraction = {:.17g}\n", least * 1.01), "j.toml")));
+  }
 }
 
 TEST(SetpointFile, RoundTripsExactly) {

@@ -422,5 +422,28 @@ TEST_F(Rs274, NotesNeitherM30NorALoneG49) {
       << notes;
 }
 
+// A loop that never ends, with or without moves, ends at max_blocks blocks executed (each
+// repetition counted), naming the first block past them.
+TEST_F(Rs274, LoopsEndAtTheBlockBudget) {
+  const std::string moving = test::Scratch("loop_moving.ngc");
+  std::ofstream(moving) << "G21 G90\nG0 X0 Y0\no100 while [1]\nG1 X10 F600\nG1 X0\n"
+                           "o100 endwhile\nM2\n";
+  const std::string still = test::Scratch("loop_still.ngc");
+  std::ofstream(still) << "G21 G90\nG0 X0 Y0\nG1 X10 F600\no100 while [1]\no100 endwhile\nM2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 1000;
+  o.remedy = "the remedy";
+  for (const std::string& file : {moving, still}) {
+    test::ExpectError([&] { ReadGcode(file, GcodeInterpreter::kRs274ngc, nullptr, {}, o); },
+                      {"the program runs more than 1000 blocks (each repetition of a loop "
+                       "counted), the most it may run here; the remedy"});
+  }
+  test::ExpectError([&] { ReadGcode(still, GcodeInterpreter::kRs274ngc, nullptr, {}, o); },
+                    "loop_still.ngc:5: the program runs more than 1000 blocks");
+  // A program within the budget reads whole.
+  EXPECT_EQ(ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc, nullptr, {}, o).moves.size(),
+            ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc).moves.size());
+}
+
 }  // namespace
 }  // namespace dtis::io

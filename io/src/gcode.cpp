@@ -124,6 +124,12 @@ class GcodeReader::Blocks {
       if (!std::isalpha(static_cast<unsigned char>(c))) {
         Fail(column, fmt::format("expected a word (a letter and a number), got '{}'", c));
       }
+      if (letter == 'O') {
+        Fail(column,
+             "O-words (subroutines, loops, conditionals) are not read by dtis' reader; read the "
+             "program with LinuxCNC's interpreter (interpreter = \"rs274ngc\" in the job's "
+             "[path])");
+      }
       ++i;
       while (i < n && (text[i] == ' ' || text[i] == '\t')) ++i;
       // A number: [+-] digits [. digits], NGC style (".5", "5.", "-0.25").
@@ -346,13 +352,21 @@ class GcodeReader::Blocks {
   std::array<bool, 3> uses_rotary_{};
 };
 
+std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOptions& options) {
+  return fmt::format(
+      "{}:{}: the program runs more than {} blocks (each repetition of a loop counted), the most "
+      "it may run here{}",
+      file, line, options.max_blocks, options.remedy.empty() ? "" : "; " + options.remedy);
+}
+
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
                          std::shared_ptr<const ToolTable> tools, Cancel* cancel,
-                         const GcodeStart& start)
-    : blocks_(interpreter == GcodeInterpreter::kRs274ngc ? nullptr
+                         const GcodeStart& start, const GcodeReadOptions& options)
+    : options_(options),
+      blocks_(interpreter == GcodeInterpreter::kRs274ngc ? nullptr
                                                          : std::make_unique<Blocks>(path, start)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel, start);
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel, start, options);
     return;
   }
   if (tools) {
@@ -367,8 +381,8 @@ GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
 }
 
 GcodeReader::GcodeReader(std::string_view text, const std::string& source_name,
-                         const GcodeStart& start)
-    : blocks_(std::make_unique<Blocks>(source_name, start)), text_(text) {}
+                         const GcodeStart& start, const GcodeReadOptions& options)
+    : options_(options), blocks_(std::make_unique<Blocks>(source_name, start)), text_(text) {}
 
 GcodeReader::~GcodeReader() = default;
 
@@ -397,6 +411,11 @@ std::optional<GcodeMove> GcodeReader::Next() {
       offset_ = end == std::string_view::npos ? text_.size() + 1 : end + 1;
     }
     if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    // Lines with something on them count (a text's last newline ends no empty block).
+    if (!l.empty() && options_.max_blocks > 0 && ++blocks_read_ > options_.max_blocks) {
+      ended_ = true;
+      throw Error("{}", TooManyBlocks(File(), line_ + 1, options_));
+    }
     if (!blocks_->Line(l, ++line_)) ended_ = true;
     if (std::optional<GcodeMove> move = blocks_->TakeMove()) return move;
   }
@@ -420,8 +439,8 @@ GcodeProgram ReadAll(Reader& reader) {
 }  // namespace
 
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name,
-                        const GcodeStart& start) {
-  GcodeReader reader(text, source_name, start);
+                        const GcodeStart& start, const GcodeReadOptions& options) {
+  GcodeReader reader(text, source_name, start, options);
   return ReadAll(reader);
 }
 
@@ -431,8 +450,9 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
 }
 
 GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
-                       std::shared_ptr<const ToolTable> tools, const GcodeStart& start) {
-  GcodeReader reader(path, interpreter, std::move(tools), nullptr, start);
+                       std::shared_ptr<const ToolTable> tools, const GcodeStart& start,
+                       const GcodeReadOptions& options) {
+  GcodeReader reader(path, interpreter, std::move(tools), nullptr, start, options);
   return ReadAll(reader);
 }
 

@@ -132,6 +132,16 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
   }
 }
 
+GcodeReadOptions JobReadOptions(const GcodeOptions& options, const std::string& job_file) {
+  GcodeReadOptions read;
+  read.max_blocks = options.max_blocks;
+  read.remedy = fmt::format(
+      "max_blocks in the [path] of {} raises it (each block held costs about 1 KB; dtis stream "
+      "reads a longer program in constant memory)",
+      job_file);
+  return read;
+}
+
 double RapidFeed(const GcodeOptions& options, const Machine& machine) {
   if (options.rapid_feed_mm_s > 0.0) return options.rapid_feed_mm_s;
   double sum = 0.0;
@@ -265,8 +275,33 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     r.rest_before = m.rest_before || std::exchange(skipped_rest_, false);
     r.dwell_s = m.dwell_s + std::exchange(skipped_dwell_, 0.0);
     if (m.kind == GcodeMove::Kind::kNurbs) r.nurbs = NurbsCurve(*m.nurbs, file_, m.line);
+    CountLeastTime(m, r);
     return r;
   }
+}
+
+void GcodeSegments::CountLeastTime(const GcodeMove& m, const Read& r) {
+  // An arc or a curve is no shorter than its chord.
+  const double chord = (m.to - tip_).norm();
+  const double move_s = chord / r.feed, block_s = move_s + r.dwell_s;
+  least_s_ += block_s;
+  if (least_s_ <= base_.max_motion_s) return;
+  std::string what;
+  if (r.dwell_s >= move_s) {
+    what = fmt::format("a dwell (G4) of {:.6g} s before it", r.dwell_s);
+  } else if (r.rapid) {
+    what = fmt::format(
+        "its rapid of {:.6g} mm at {:.6g} mm/min ([path] rapid_feed_mm_min, or the "
+        "machine's velocities)",
+        chord, r.feed * 60.0);
+  } else {
+    what = fmt::format("its move of {:.6g} mm at F{:.6g} mm/min", chord, r.feed * 60.0);
+  }
+  throw Error(
+      "{}:{}: the program takes at least {:.3g} h up to this block, more than the {:g} h a job may "
+      "take; this block alone takes {:.3g} h: {}{}",
+      file_, m.line, least_s_ / 3600.0, base_.max_motion_s / 3600.0, block_s / 3600.0, what,
+      block_s < 0.01 * least_s_ ? " (does a loop repeat more often than meant?)" : "");
 }
 
 // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids. A chain ends
@@ -398,6 +433,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
     plan.paths.push_back(std::move(s->path));
   }
   plan.rapids = segments.Rapids();
+  plan.least_time_s = segments.LeastTime();
   return plan;
 }
 

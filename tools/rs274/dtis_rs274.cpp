@@ -4,8 +4,11 @@
 // which is GPL-2: it is a separate program so that the dtis library keeps its own licence, and so
 // that an interpreter failure cannot take the planner (or a machine it feeds) down with it.
 //
-//   dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...]
+//   dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...] [-n MAX_BLOCKS]
 //              [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
+//
+// With -n, the interpreter executes at most MAX_BLOCKS blocks (each repetition of a loop and each
+// block of a called subroutine counted), so that a loop that never ends ends here.
 //
 // -s: where the machine is as the program starts (mm and degrees, the machine frame; default the
 // origin). -p: the numbered parameters the interpreter starts with, as LinuxCNC's parameter file
@@ -32,6 +35,7 @@
 //   D <line> seconds                         dwell (G4)
 //   I <line> what                            a call that moves nothing (spindle, coolant, tool)
 //   E <line> message                         the interpreter's error; the last record
+//   B <line>                                 the block after MAX_BLOCKS executed (-n); the last record
 //   X                                        the program's end; the last record
 // Exit status: 0 after X, 1 after E, 2 on bad usage.
 #include <unistd.h>
@@ -538,15 +542,24 @@ bool ReadTool(const char* text, CANON_TOOL_TABLE* entry) {
 
 int main(int argc, char** argv) {
   constexpr const char* kUsage =
-      "usage: dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...] "
+      "usage: dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...] [-n MAX_BLOCKS] "
       "[-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n";
   if (argc < 2) {
     std::fputs(kUsage, stderr);
     return 2;
   }
   std::string parameters;  // the parameter file's lines
+  // -n: the most blocks the interpreter executes (loops and calls counted), then "B line".
+  long max_blocks = 0;
   for (int i = 2; i < argc; ++i) {
-    if (std::strcmp(argv[i], "-t") == 0) {
+    if (std::strcmp(argv[i], "-n") == 0 && i + 1 < argc) {
+      char* end = nullptr;
+      max_blocks = std::strtol(argv[++i], &end, 10);
+      if (end == argv[i] || *end != '\0' || max_blocks < 1) {
+        std::fprintf(stderr, "dtis-rs274: -n '%s' is not a number of blocks\n", argv[i]);
+        return 2;
+      }
+    } else if (std::strcmp(argv[i], "-t") == 0) {
       tool_table_given = true;
       for (++i; i < argc; ++i) {
         CANON_TOOL_TABLE entry;
@@ -634,11 +647,16 @@ int main(int argc, char** argv) {
   }
   status = interp->open(program.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
-  for (;;) {
+  for (long blocks = 1;; ++blocks) {
     status = interp->read();
     if (status == INTERP_ENDFILE) break;
     if (status > INTERP_MIN_ERROR) return fail(status);
     current_line = interp->sequence_number();
+    if (max_blocks > 0 && blocks > max_blocks) {  // the first block past them, not executed
+      std::printf("B %d\n", current_line);
+      std::fflush(stdout);
+      std::_Exit(1);
+    }
     status = interp->execute();
     if (status == INTERP_EXIT) break;
     if (status > INTERP_MIN_ERROR) return fail(status);

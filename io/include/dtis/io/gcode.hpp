@@ -103,6 +103,23 @@ struct GcodeProgram {
   std::vector<std::pair<std::string, int>> notes;
 };
 
+// Bounds on reading a program, so that one that does not end (an O-word loop, with or without
+// moves) or is longer than its reader may hold is an error naming its line, never a read that
+// does not end.
+struct GcodeReadOptions {
+  // The most blocks read, each repetition of a loop counted (LinuxCNC's interpreter: blocks
+  // executed, subroutine calls and loops included; dtis' reader: lines that are not empty); 0: no
+  // limit. Past it, Next() throws dtis::Error "<file>:<line>: the program runs more than N
+  // blocks ...", naming the first block past them.
+  long max_blocks = kDefaultMaxBlocks;
+  // Added to that message: what the user can do about it.
+  std::string remedy;
+  // A bound on loops that never end, for a reader that holds nothing (a stream): 100 million
+  // blocks take dtis' reader under a minute. What a reader that holds the program takes is
+  // bounded by the job ([path] max_blocks).
+  static constexpr long kDefaultMaxBlocks = 100'000'000;
+};
+
 // A program read one move at a time, in constant memory (a line and the modal state), for programs
 // too long to hold: Next() throws dtis::Error "<file>:<line>:<column>: ..." at a bad block.
 class GcodeReader {
@@ -117,9 +134,10 @@ class GcodeReader {
   explicit GcodeReader(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
                        std::shared_ptr<const ToolTable> tools = nullptr, Cancel* cancel = nullptr,
-                       const GcodeStart& start = {});
+                       const GcodeStart& start = {}, const GcodeReadOptions& options = {});
   // Reads `text`, which must outlive the reader; `source_name` names it in messages.
-  GcodeReader(std::string_view text, const std::string& source_name, const GcodeStart& start = {});
+  GcodeReader(std::string_view text, const std::string& source_name, const GcodeStart& start = {},
+              const GcodeReadOptions& options = {});
   ~GcodeReader();
   GcodeReader(const GcodeReader&) = delete;
   GcodeReader& operator=(const GcodeReader&) = delete;
@@ -134,6 +152,8 @@ class GcodeReader {
 
  private:
   class Blocks;
+  GcodeReadOptions options_;
+  long blocks_read_ = 0;  // lines that were not empty
   std::unique_ptr<Blocks> blocks_;
   std::unique_ptr<Rs274Reader> rs274_;  // LinuxCNC's interpreter, when it reads
   std::unique_ptr<std::ifstream> in_;   // the file; without one, text_ from offset_
@@ -148,9 +168,9 @@ class GcodeReader {
 GcodeProgram ReadGcode(const std::string& path,
                        GcodeInterpreter interpreter = GcodeInterpreter::kDtis,
                        std::shared_ptr<const ToolTable> tools = nullptr,
-                       const GcodeStart& start = {});
+                       const GcodeStart& start = {}, const GcodeReadOptions& options = {});
 GcodeProgram ParseGcode(std::string_view text, const std::string& source_name,
-                        const GcodeStart& start = {});
+                        const GcodeStart& start = {}, const GcodeReadOptions& options = {});
 // The records dtis-rs274 writes (tools/rs274/dtis_rs274.cpp), as they would be read from it: for
 // tests and the fuzz target. Throws dtis::Error on the interpreter's error or a bad record.
 GcodeProgram ParseRs274Records(std::string_view records, const std::string& source_name);

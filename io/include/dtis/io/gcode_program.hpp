@@ -60,6 +60,11 @@ struct GcodeOptions {
   // LinuxCNC's numbered parameters the program starts with (GcodeStart::parameters): a parameter
   // file's, then the job's work offsets.
   std::map<int, double> parameters;
+  // dtis run holds the whole program, about 1 KB a block: it reads at most this many blocks
+  // (GcodeReadOptions::max_blocks, each repetition of a loop counted; the job's [path]
+  // max_blocks); 0: no limit.
+  long max_blocks = kDefaultMaxBlocks;
+  static constexpr long kDefaultMaxBlocks = 200'000;
 };
 
 // `options`' start on `machine`: where its tip is and its rotary words, and the parameters.
@@ -68,6 +73,10 @@ GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine);
 // GcodeOptions::from for the machine at axis positions `q` (planner units): its tip through the
 // forward kinematics, and its rotary axes.
 std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine);
+
+// What `dtis run` reads of a job's program: options.max_blocks, the message naming the key of
+// `job_file` that raises it.
+GcodeReadOptions JobReadOptions(const GcodeOptions& options, const std::string& job_file);
 
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
 std::array<int, 3> RotaryWordAxes(const Machine& machine);
@@ -97,6 +106,7 @@ struct GcodePlan {
   std::vector<bool> rapid;                       // per segment: rapids, not feed moves
   int chains = 0, rapids = 0, corners = 0;  // chains of feed moves; rapid blocks; corners smoothed
   double length_mm = 0.0;                   // tip path length of the feed moves
+  double least_time_s = 0.0;                // GcodeSegments::LeastTime() of the whole program
 };
 
 // One segment of a program: a chain of feed moves (or of rapids), smoothed, or a lone rapid.
@@ -128,6 +138,11 @@ class GcodeSegments {
   // it left of its chain (nothing, once it was planned or checked to its end).
   std::optional<GcodeSegment> Next();
   int Rapids() const { return rapids_; }  // rapid blocks read so far
+  // The least time the moves read so far can take (s): each move's chord at its feed, rapids at
+  // the rapid feed, and the dwells. Next() throws dtis::Error "<file>:<line>: ..." naming the
+  // block at which it passes the options' max_motion_s (24 h): a feed, a rapid feed or a dwell
+  // mistyped, or a loop that repeats too often.
+  double LeastTime() const { return least_s_; }
 
   // Windowed chains are smoothed as 3- or 5-axis chains before their moves are read: the
   // five_axis flags of a scan of the same program, windowed chains in order.
@@ -148,6 +163,7 @@ class GcodeSegments {
     std::shared_ptr<const geometry::BSplineCurve> nurbs;  // G5.2: the curve, its own chain
   };
   std::optional<Read> ReadMove();
+  void CountLeastTime(const GcodeMove& m, const Read& r);
   bool Joins(const Read& r) const;
   void Open(const Read& r);
   void Append(const Read& r);
@@ -190,6 +206,7 @@ class GcodeSegments {
   std::size_t windowed_ = 0;  // windowed chains so far
   bool scan_only_ = false;
   int rapids_ = 0, segments_ = 0;
+  double least_s_ = 0.0;
 };
 
 // `base` carries the period and the tangential limits; each segment gets its own feed. Throws
