@@ -444,7 +444,7 @@ bounded_case 1 end-tolerance "endtol.toml:8: key 'interpolator.end_tolerance_mm'
 printf '[interpolator]\ncommit_horizon = 1099511627776\n' | cat "$work/line.toml" - > "$work/horizon.toml"
 bounded_case 1 commit-horizon "horizon.toml:8: key 'interpolator.commit_horizon': expected 8 to 1073741824 periods (2^30), got 1099511627776" -- "$dtis" run "$work/horizon.toml"
 printf 'name = ""\n' | cat - "$work/line.toml" > "$work/noname_job.toml"
-bounded_case 1 empty-name "noname_job.toml:1: key 'name': expected a name (it names the outputs)" -- "$dtis" run "$work/noname_job.toml"
+bounded_case 1 empty-name "noname_job.toml:1: key 'name': expected a name for the outputs (NAME.csv) inside the current folder" -- "$dtis" run "$work/noname_job.toml"
 printf 'degree = 2\nknots = [0, 0, 0, 1, 1, 1]\npoles = [[1, 2], [1, 2], [1, 2]]\n' > "$work/point_curve.toml"
 sed 's/knots.toml/point_curve.toml/' "$work/curvejob.toml" > "$work/pointjob.toml"
 bounded_case 1 coincident-poles "point_curve.toml:3: key 'poles': all 3 poles coincide at (1, 2, 0): the curve has zero length" -- "$dtis" run "$work/pointjob.toml" -o "$work/out.csv"
