@@ -194,6 +194,7 @@ int Run(const RunArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
+    in.unreachable = result.unreachable_all;
     dtis::io::WriteFileAtomically(a.report, RenderJobReport(job, std::move(in), plotly));
   }
   progress.Clear();
