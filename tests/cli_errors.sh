@@ -310,6 +310,8 @@ fi
 sed 's/^face = 3/face = 1\nrotate_deg = [0, 90, 0]\ntranslate_mm = [336, 0, 0]/; s/^stepover_mm = 2/stepover_mm = 0.5/' "$work/surf.toml" > "$work/travel.toml"
 expect surface-out-of-travel "travel.toml: pass 152: cannot follow the path at $parts/occt_trj8_c2-db-214_single_bspline_face.stp face 1 ('127'), pass 152" -- timeout 10 "$dtis" run "$work/travel.toml" -o "$work/out.csv"
 expect surface-out-of-travel-axis "axis X would have to reach 400.254 mm, 0.254 mm outside its travel [-400, 400] mm (found before planning)" -- timeout 10 "$dtis" run "$work/travel.toml" -o "$work/out.csv"
+expect stream-out-of-travel "travel.toml: pass 152: cannot follow the path at" -- timeout 10 "$dtis" stream "$work/travel.toml" --to "$work/out.txt"
+expect compare-out-of-travel "travel.toml: pass 152: cannot follow the path at" -- timeout 10 "$dtis" compare "$work/travel.toml" --csv "$work/out.csv"
 sed 's/^face = 3/face = "127#2"/' "$work/surf.toml" > "$work/nth.toml"
 expect face-name-nth "nth.toml:5: key 'surface.face': $parts/occt_trj8_c2-db-214_single_bspline_face.stp has 1 face named '127' ('127#1' to '127#1', in the file's order); there is no '127#2'" -- "$dtis" run "$work/nth.toml" -o "$work/out.csv"
 

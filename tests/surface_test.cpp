@@ -54,6 +54,7 @@
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/job.hpp"
 #include "dtis/io/report.hpp"
+#include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
 #include "fixture_shapes.hpp"
@@ -1672,6 +1673,10 @@ TEST(SurfaceJob, APartOutOfTravelIsRefusedBeforePlanning) {
                      "axis Y would have to reach ", "outside its travel [-300, 300] mm"});
   test::ExpectError([&] { io::RunJob(job); },
                     "out_of_travel.toml: pass 1: cannot follow the path at ");
+  // A stream refuses it before its first segment, as a run does.
+  test::ExpectError(
+      [&] { io::JobSegments(job, *machine); },
+      {"out_of_travel.toml: pass 1: cannot follow the path at ", "(found before planning)"});
   // In travel, the check passes.
   const io::Job inside =
       BallJob(step, "", "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 7",
