@@ -1622,6 +1622,16 @@ TEST(SurfaceJob, ANameSelectsEveryFaceOfItAndNameNumberOneOfThem) {
                     "is given twice (as 'PartBody' and 'PartBody#1')");
   test::ExpectError([&] { io::JobFaces(*job("\"Body#1\"").surface, model); },
                     "has no face named 'Body#1'");
+  // A face named "Body#2" is that face; "Body#1" the first named "Body".
+  const std::string hashed = WriteNamedFaces(
+      "hash_name", {{BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face(), "Body#2"},
+                    {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "Body"}});
+  const StepModel hashed_model = StepModel::Load(hashed);
+  const auto hashed_job = [&](const std::string& face) {
+    return WavyFacesJob(hashed, face, test::Scratch("hash_name.toml"));
+  };
+  EXPECT_EQ(io::JobFaces(*hashed_job("\"Body#2\"").surface, hashed_model), std::vector<int>{1});
+  EXPECT_EQ(io::JobFaces(*hashed_job("\"Body#1\"").surface, hashed_model), std::vector<int>{2});
 
   const io::Job both = job("\"PartBody\"");
   io::RunResult r = io::RunJob(both);
