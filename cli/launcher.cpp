@@ -46,7 +46,9 @@ int main(int argc, char** argv) {
   }
   const int why = errno;
   sigprocmask(SIG_SETMASK, &old, nullptr);
-  std::fprintf(stderr, "dtis: internal error: cannot run %s next to %s: %s\n", program,
-               n > 0 ? path : "this program", std::strerror(why));
+  std::fprintf(stderr,
+               "dtis: cannot run %s: %s (dtis starts the program %s installed beside it: copy "
+               "or install both)\n",
+               n > 0 ? path : program, std::strerror(why), program);
   return 4;
 }

@@ -151,21 +151,90 @@ void ApplyPlanner(const std::string& planner, dtis::io::Job* job) {
   job->vpop.planner = *dtis::interp::PlannerFromName(planner);  // CLI11 checked the name
 }
 
+// --jerk-time-ms: the job key machine_jerk_time_ms from the command line (0: not given), for a
+// LinuxCNC INI machine without MAX_JERK.
+void ApplyJerkTime(double ms, dtis::io::Job* job) {
+  if (!(ms > 0.0)) return;
+  if (!dtis::kinematics::IsLinuxcncIni(job->machine_file)) {
+    throw dtis::Error(
+        "--jerk-time-ms: only used with a LinuxCNC INI machine; {} (the machine of {}) states "
+        "every jerk",
+        job->machine_file, job->file);
+  }
+  job->machine_options.jerk_time_s = ms * 1e-3;
+}
+
+// Numeric options: a finite number in range, the message printing the value as given and the
+// bounds short (CLI11's PositiveNumber and NonNegativeNumber print their bounds as 309-digit
+// numbers and let NaN through).
+CLI::Validator NumberCheck(bool zero_allowed) {
+  return CLI::Validator(
+      [zero_allowed](std::string& input) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(input, v) || !std::isfinite(v) || v < 0.0 ||
+            (v == 0.0 && !zero_allowed)) {
+          return fmt::format("expected a finite number {} 0, got '{}'", zero_allowed ? ">=" : ">",
+                             input);
+        }
+        return {};
+      },
+      zero_allowed ? "NONNEGATIVE" : "POSITIVE");
+}
+const CLI::Validator kPositive = NumberCheck(false);
+const CLI::Validator kNonNegative = NumberCheck(true);
+
 const char* const kPlannerHelp =
     "lookahead (the exact step capped by the viable feeds ahead; the default) or vpop (the "
     "paper's back-off); overrides the job's [interpolator] planner";
 
+// "X,Y,Z[,A,C]" in machine units (mm, deg), as many values as the machine has axes.
+dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine& machine) {
+  std::vector<double> values;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v)) {
+      throw dtis::Error("--from: '{}' is not a number; expected {} comma-separated axis positions",
+                        item, machine.AxisCount());
+    }
+    values.push_back(v);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (static_cast<int>(values.size()) != machine.AxisCount()) {
+    throw dtis::Error("--from: {} values; machine '{}' has {} axes", values.size(), machine.Name(),
+                      machine.AxisCount());
+  }
+  return dtis::io::FileUnits(machine).ToPlanner(values);
+}
+
 struct RunArgs {
-  std::string job, output, limiters, report, planner;
+  std::string job, output, limiters, report, planner, from;
   bool quiet = false, keep_failed = false;
   int threads = 0;
   long horizon = 0;
+  double jerk_time_ms = 0.0;
 };
 
 int Run(const RunArgs& a) {
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   if (a.horizon > 0) job.vpop.commit_horizon = static_cast<std::size_t>(a.horizon);
   ApplyPlanner(a.planner, &job);
+  ApplyJerkTime(a.jerk_time_ms, &job);
+  if (!a.from.empty()) {
+    // Where the machine is: a G-code program starts there (the job's [path] from otherwise).
+    if (job.surface || job.path.kind != dtis::io::PathSpec::Kind::kGcode) {
+      throw dtis::Error(
+          "--from: {} is not a G-code job; its path starts where the job says (`dtis stream "
+          "--from` leads a link there from where the machine is)",
+          job.file);
+    }
+    const auto machine = dtis::io::LoadJobMachine(job);
+    job.path.gcode.from = dtis::io::GcodeFrom(ParseAxisPositions(a.from, *machine), *machine);
+  }
   std::string setpoints = !a.output.empty()            ? a.output
                           : !job.setpoints_out.empty() ? job.setpoints_out
                                                        : job.name + ".csv";
@@ -187,16 +256,21 @@ int Run(const RunArgs& a) {
                  dtis::io::UnfitMessage(job, result).c_str());
     return kExitVerifyFailed;
   }
-  progress.Phase("writing");
-  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file, a.keep_failed);
+  // The report lands with the setpoints: one written in place (a device, a FIFO) first, since it
+  // cannot be taken back, so that a failed write there leaves no setpoints.
+  std::optional<dtis::io::AtomicFile> html;
   if (!a.report.empty()) {
     progress.Phase("writing the report");
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
     in.unreachable = result.unreachable_all;
-    dtis::io::WriteFileAtomically(a.report, RenderJobReport(job, std::move(in), plotly));
+    html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
+    if (html->InPlace()) html->Commit();
   }
+  progress.Phase("writing");
+  dtis::io::WriteRunOutputs(job, result, setpoints, limiter_file, a.keep_failed);
+  if (html && !html->InPlace()) html->Commit();
   progress.Clear();
   if (!a.quiet) {
     std::fputs(dtis::io::FormatRunSummary(job, result).c_str(), stderr);
@@ -211,10 +285,12 @@ struct CompareArgs {
   std::string job, csv, markdown, exports, report, planner = "both";
   bool quiet = false;
   int threads = 0;
+  double jerk_time_ms = 0.0;
 };
 
 int Compare(const CompareArgs& a) {
   dtis::io::Job job = dtis::io::LoadJob(a.job);
+  ApplyJerkTime(a.jerk_time_ms, &job);
   const std::string plotly =
       a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before planning
   dtis::io::CompareOptions options;
@@ -252,9 +328,7 @@ int Compare(const CompareArgs& a) {
     in.shown = dtis::io::VariantLabel(exact);
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
   }
-  if (csv) csv->Commit();
-  if (md) md->Commit();
-  if (html) html->Commit();
+  dtis::io::CommitTogether({csv ? &*csv : nullptr, md ? &*md : nullptr, html ? &*html : nullptr});
   std::fputs(dtis::io::FormatCompareText(result).c_str(), stdout);
   for (const auto& v : result.variants) {
     if (!v.verify.Passed()) return kExitVerifyFailed;
@@ -370,31 +444,8 @@ struct StreamArgs {
   std::string job, to = "-", record, report, pace = "auto", from, planner;
   long buffer = 200, horizon = 0, low_water = 20, slow_planner_us = 0;
   bool index = false, quiet = false;
+  double jerk_time_ms = 0.0;
 };
-
-// "X,Y,Z[,A,C]" in machine units (mm, deg), as many values as the machine has axes.
-dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine& machine) {
-  std::vector<double> values;
-  std::size_t start = 0;
-  for (;;) {
-    const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || !std::isfinite(v)) {
-      throw dtis::Error("--from: '{}' is not a number; expected {} comma-separated axis positions",
-                        item, machine.AxisCount());
-    }
-    values.push_back(v);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  if (static_cast<int>(values.size()) != machine.AxisCount()) {
-    throw dtis::Error("--from: {} values; machine '{}' has {} axes", values.size(), machine.Name(),
-                      machine.AxisCount());
-  }
-  return dtis::io::FileUnits(machine).ToPlanner(values);
-}
 
 // Where a stream goes: "-" (stdout), a file or FIFO (halstreamer's stdin; a FIFO opens when its
 // reader does) as halstreamer lines, or "hal:N" straight into HAL's streamer.N.
@@ -451,6 +502,7 @@ int Stream(const StreamArgs& a) {
   KeepStopSignals();
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   ApplyPlanner(a.planner, &job);
+  ApplyJerkTime(a.jerk_time_ms, &job);
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
   const auto machine = dtis::io::LoadJobMachine(job);
   std::optional<dtis::AxisVector> from;
@@ -537,10 +589,11 @@ int Stream(const StreamArgs& a) {
   return r.end == dtis::io::StreamEnd::kComplete ? 0 : kExitStreamEndedEarly;
 }
 
-// --jerk-time-ms: for LinuxCNC INI machines without MAX_JERK (0: not given).
+// --jerk-time-ms: for LinuxCNC INI machines without MAX_JERK (0: not given; the machine's reader
+// refuses any other value out of range, NaN included).
 dtis::kinematics::MachineLoadOptions JerkTime(double ms) {
   dtis::kinematics::MachineLoadOptions o;
-  if (ms > 0.0) o.jerk_time_s = ms * 1e-3;
+  if (ms != 0.0) o.jerk_time_s = ms * 1e-3;
   return o;
 }
 
@@ -730,7 +783,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"vpop", "lookahead"}));
   run->add_option("-j,--threads", ra_run.threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
+  run->add_option("--jerk-time-ms", ra_run.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
+  run->add_option("--from", ra_run.from,
+                  "G-code jobs: where the machine is, X,Y,Z[,A,C] (mm, deg): the program starts "
+                  "there (default: the job's [path] from, else the origin)");
 
   auto* compare = app.add_subcommand(
       "compare",
@@ -754,8 +811,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"both", "vpop", "lookahead"}))
       ->capture_default_str();
   compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
-  compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+  compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")->check(kNonNegative);
+  compare->add_option("--jerk-time-ms", ca.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* faces = app.add_subcommand(
       "faces",
@@ -774,8 +831,7 @@ int main(int argc, char** argv) {
   verify->add_option("FILE", setpoints, "setpoint CSV")->required();
   verify->add_option("MACHINE", machine, "machine file (see samples/machines/) or LinuxCNC INI")
       ->required();
-  verify->add_option("--jerk-time-ms", verify_jerk_time_ms, kJerkTimeHelp)
-      ->check(CLI::PositiveNumber);
+  verify->add_option("--jerk-time-ms", verify_jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* machine_cmd =
       app.add_subcommand("machine", "Machines: import a LinuxCNC INI file as a dtis machine file.");
@@ -788,8 +844,7 @@ int main(int argc, char** argv) {
   double import_jerk_time_ms = 0.0;
   import->add_option("INI", import_from, "LinuxCNC INI file (or a machine file)")->required();
   import->add_option("-o,--output", import_output, "machine file to write (default: stdout)");
-  import->add_option("--jerk-time-ms", import_jerk_time_ms, kJerkTimeHelp)
-      ->check(CLI::PositiveNumber);
+  import->add_option("--jerk-time-ms", import_jerk_time_ms, kJerkTimeHelp)->check(kPositive);
 
   auto* report = app.add_subcommand(
       "report",
@@ -801,7 +856,7 @@ int main(int argc, char** argv) {
   ReportArgs ra;
   report->add_option("FILE", ra.setpoints, "setpoint CSV")->required();
   report->add_option("MACHINE", ra.machine, "machine file (default: the --job's)");
-  report->add_option("--jerk-time-ms", ra.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  report->add_option("--jerk-time-ms", ra.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   report->add_option("-o,--output", ra.output, "HTML file (default: FILE with .html)");
   report->add_option("--job", ra.job,
                      "the job the setpoints came from: its machine, programmed feed and, for a "
@@ -841,7 +896,7 @@ int main(int argc, char** argv) {
   stream->add_option("--to", sa.to, kStreamToHelp)->capture_default_str();
   stream->add_option("--buffer", sa.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   stream
       ->add_option("--horizon", sa.horizon,
                    "steps the planner keeps open to back-off before handing them over (default: "
@@ -853,7 +908,7 @@ int main(int argc, char** argv) {
                    "in real time: when the planner has nothing new and the machine holds fewer "
                    "periods than this, play the stop (an underrun)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   stream
       ->add_option("--pace", sa.pace,
                    "realtime: write at the machine's pace; none: as fast as the output takes "
@@ -868,14 +923,15 @@ int main(int argc, char** argv) {
                      "also write a self-contained HTML report of what was streamed (stop "
                      "included)");
   stream->add_option("--from", sa.from,
-                     "where the machine is, X,Y,Z[,A,C] (mm, deg): a link leads from there to the "
-                     "job's start");
+                     "where the machine is, X,Y,Z[,A,C] (mm, deg): a G-code program starts there; "
+                     "to any other job a link leads from there to its start");
   stream
       ->add_option("--slow-planner-us", sa.slow_planner_us,
                    "testing: the planner sleeps this long per setpoint (to make it fall behind)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   stream->add_option("--planner", sa.planner, kPlannerHelp)
       ->check(CLI::IsMember({"vpop", "lookahead"}));
+  stream->add_option("--jerk-time-ms", sa.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   stream->add_flag("-q,--quiet", sa.quiet, "print nothing on success");
 
   auto* serve = app.add_subcommand(
@@ -888,14 +944,14 @@ int main(int argc, char** argv) {
   serve->add_option("--socket", va.socket, "Unix socket (default $XDG_RUNTIME_DIR/dtis.sock)");
   serve->add_option("--machine", va.machine, "the CNC's machine file; jobs must use it")
       ->required();
-  serve->add_option("--jerk-time-ms", va.jerk_time_ms, kJerkTimeHelp)->check(CLI::PositiveNumber);
+  serve->add_option("--jerk-time-ms", va.jerk_time_ms, kJerkTimeHelp)->check(kPositive);
   serve->add_option("--to", va.to, kStreamToHelp)->capture_default_str();
   serve->add_option("--buffer", va.buffer, "setpoints kept ahead of the machine, periods")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   serve->add_option("--low-water", va.low_water, "underrun threshold, periods")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   serve->add_option("--pace", va.pace, "realtime or none")
       ->capture_default_str()
       ->check(CLI::IsMember({"realtime", "none"}));

@@ -23,6 +23,9 @@ literal() {
     literal "$command"
     printf '.fi\n'
   done
+  printf '.SS machine import\n.nf\n'
+  literal machine import
+  printf '.fi\n'
   cat <<'MAN'
 .SH EXIT STATUS
 The same for every command:
@@ -51,6 +54,10 @@ the plotly.min.js that HTML reports embed (default: the one installed with dtis)
 .TP
 .B DTIS_CHROMIUM
 the browser dtis figures draws with (default: chromium on PATH)
+.TP
+.B DTIS_RS274
+the dtis-rs274 program that runs LinuxCNC's G-code interpreter for G-code jobs (default: the
+one installed next to dtis)
 .SH FILES
 .TP
 .I PREFIX/share/dtis/samples/

@@ -78,7 +78,7 @@ sed 's/^knots = .*/knots = [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1]/; s/\[2, 0\]/[
 sed 's/knots.toml/far.toml/' "$work/curvejob.toml" > "$work/farjob.toml"
 expect far-pole "far.toml:3: curve: pole 2 (2, 1e+300, 0) is more than 1e+06 mm from the origin" -- timeout 10 "$dtis" run "$work/farjob.toml" -o "$work/out.csv"
 sed 's/1e300/1e6/' "$work/far.toml" > "$work/km.toml"
-sed 's/knots.toml/km.toml/' "$work/curvejob.toml" > "$work/kmjob.toml"
+sed 's/knots.toml/km.toml/; s/^feed_mm_min = .*/feed_mm_min = 60000/' "$work/curvejob.toml" > "$work/kmjob.toml"
 expect km-pole "outside its travel" -- timeout 10 "$dtis" run "$work/kmjob.toml" -o "$work/out.csv"
 printf 't,X,Y,Z\n0,0,0,0\n0.001,abc,0,0\n' > "$work/bad.csv"
 expect bad-csv "bad.csv:3: column 2 ('X') is not a finite number" -- "$dtis" verify "$work/bad.csv" "$work/mikron_ucp710_xyz.toml"
@@ -303,6 +303,184 @@ expect figures-browser "cannot run $work/no-chromium" -- env DTIS_CHROMIUM="$wor
 if command -v chromium >/dev/null; then
   expect figures-page "page.html: the browser (" -- "$dtis" figures "$work/page.html" -o "$work/out"
 fi
+
+# Outputs that are not files: a device or a FIFO is written in place, never renamed over (as
+# root, a rename replaced /dev/null with a file); a failed write is an error naming the file,
+# leaving no other output; a job's name keeps its outputs in the current folder.
+device_kept() {  # device_kept NAME PATH TYPE(c|p)
+  checks=$((checks + 1))
+  local kept=no
+  if [ "$3" = c ]; then [ -c "$2" ] && kept=yes; else [ -p "$2" ] && kept=yes; fi
+  if [ $kept = yes ]; then
+    echo "ok $1"
+  else
+    echo "FAIL $1: $2 is no longer a $( [ "$3" = c ] && echo device || echo FIFO)"; failures=$((failures + 1))
+  fi
+}
+expect_status 0 out-devnull "" -- "$dtis" run "$work/line.toml" -o /dev/null
+device_kept out-devnull-kept /dev/null c
+expect_status 0 limiters-devnull "" -- "$dtis" run "$work/line.toml" -o "$work/kept.csv" --limiters /dev/null
+device_kept limiters-devnull-kept /dev/null c
+rm -f "$work/kept.csv"
+expect_status 0 record-devnull "" -- "$dtis" stream "$work/line.toml" --to /dev/null --record /dev/null -q
+expect_status 0 import-devnull "" -- "$dtis" machine import "$work/mikron_ucp710_xyz.toml" -o /dev/null
+device_kept import-devnull-kept /dev/null c
+if [ -c /dev/full ] && [ -w /dev/full ]; then
+  expect out-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o /dev/full
+  expect limiters-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --limiters /dev/full
+  expect record-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" stream "$work/line.toml" --to /dev/null --record /dev/full -q
+  expect import-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" machine import "$work/mikron_ucp710_xyz.toml" -o /dev/full
+  if [ -s "${DTIS_PLOTLY_JS:-$root/tools/report/node_modules/plotly.js-dist-min/plotly.min.js}" ]; then
+    expect report-devfull "/dev/full: write failed (No space left on device)" -- "$dtis" run "$work/line.toml" -o "$work/out.csv" --report /dev/full
+  fi
+  device_kept devfull-kept /dev/full c
+fi
+# A FIFO stays a FIFO, and what reads it gets the setpoints.
+mkfifo "$work/setpoints.fifo"
+cat "$work/setpoints.fifo" > "$work/from_fifo.txt" &
+fifo_reader=$!
+expect_status 0 out-fifo "" -- timeout 20 "$dtis" run "$work/line.toml" -o "$work/setpoints.fifo" -q
+wait "$fifo_reader"
+device_kept out-fifo-kept "$work/setpoints.fifo" p
+checks=$((checks + 1))
+if [ "$(head -n 1 "$work/from_fifo.txt")" = "t,X,Y,Z" ] && [ "$(wc -l < "$work/from_fifo.txt")" -gt 1000 ]; then
+  echo "ok out-fifo-read"
+else
+  echo "FAIL out-fifo-read: the reader got $(wc -l < "$work/from_fifo.txt") lines"; failures=$((failures + 1))
+fi
+# A job's name places NAME.csv: never outside the current folder, never nameless.
+mkdir -p "$work/jobs/a/b"
+for case in "escape ../../out_escape" "absolute $work/out_absolute" "empty "; do
+  label=${case%% *} name=${case#* }
+  printf 'name = "%s"\n' "$name" | cat - "$work/line.toml" > "$work/jobs/name_$label.toml"
+  expect "name-$label" "name_$label.toml:1: key 'name': expected a name for the outputs (NAME.csv) inside the current folder" -- env -C "$work/jobs/a/b" "$dtis" run "$work/jobs/name_$label.toml" -q
+done
+checks=$((checks + 1))
+if [ -z "$(find "$work" -name '*.csv' -newer "$work/jobs/name_empty.toml" ! -path "$work/from_fifo.txt")" ]; then
+  echo "ok name-nothing-written"
+else
+  echo "FAIL name-nothing-written: $(find "$work" -name '*.csv' -newer "$work/jobs/name_empty.toml")"; failures=$((failures + 1))
+fi
+# --jerk-time-ms on run, stream and compare, as the job key: an INI job without MAX_JERK runs.
+if "$dtis" run "$work/ini_job.toml" --jerk-time-ms 20 -o "$work/ini_cli.csv" -q &&
+  "$dtis" verify "$work/ini_cli.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null &&
+  "$dtis" run "$work/ini_ok.toml" -o "$work/ini_key.csv" -q && cmp -s "$work/ini_cli.csv" "$work/ini_key.csv" &&
+  "$dtis" stream "$work/ini_job.toml" --jerk-time-ms 20 --to /dev/null --record "$work/ini_stream.csv" -q &&
+  "$dtis" verify "$work/ini_stream.csv" "$work/mill.ini" --jerk-time-ms 20 >/dev/null; then
+  echo "ok ini-job-jerk-time-option"
+else
+  echo "FAIL ini-job-jerk-time-option"; failures=$((failures + 1))
+fi
+checks=$((checks + 1))
+expect run-jerk-time-toml "--jerk-time-ms: only used with a LinuxCNC INI machine" -- "$dtis" run "$work/line.toml" --jerk-time-ms 20 -o "$work/out.csv"
+expect_usage compare-jerk-time-negative "--jerk-time-ms" -- "$dtis" compare "$work/line.toml" --jerk-time-ms -1
+# Where a G-code program starts: --from on run, for G-code jobs only.
+printf 'G21 G90\nG1 X10 F600\nM2\n' > "$work/first_cut.ngc"
+printf 'machine = "mikron_ucp710_xyz.toml"\n[path]\nkind = "gcode"\nfile = "first_cut.ngc"\ninterpreter = "dtis"\n' > "$work/first_cut.toml"
+expect run-from-not-gcode "--from: $work/line.toml is not a G-code job" -- "$dtis" run "$work/line.toml" --from 0,0,0 -o "$work/out.csv"
+expect run-from-count "--from: 2 values; machine" -- "$dtis" run "$work/first_cut.toml" --from 0,0 -o "$work/out.csv"
+checks=$((checks + 1))
+if "$dtis" run "$work/first_cut.toml" --from -5,0,0 -o "$work/first_cut.csv" 2>"$work/first_cut.err" &&
+  grep -q "path 15 mm" "$work/first_cut.err" && grep -q "1 contour, 0 rapids" "$work/first_cut.err"; then
+  echo "ok run-from-plans-the-first-cut"
+else
+  echo "FAIL run-from-plans-the-first-cut: $(cat "$work/first_cut.err")"; failures=$((failures + 1))
+fi
+# Bounds: every run's work is bounded from the job before planning, nonsense is refused and
+# messages name the key. Each case is a clean error (exit 1, or 2 for the command line) within
+# 10 s and 500 MB of address space, run from an empty folder that stays empty.
+mkdir -p "$work/cwd"
+bounded_case() {  # bounded_case STATUS NAME FRAGMENT -- command...
+  local want=$1 name=$2 fragment=$3
+  shift 4
+  cd "$work/cwd" || return
+  expect_status "$want" "$name" "$fragment" -- prlimit --as=$((500 << 20)) -- timeout 10 "$@"
+  cd - >/dev/null || return
+  if [ -n "$(ls -A "$work/cwd")" ]; then
+    echo "FAIL $name: wrote $(ls -A "$work/cwd") in the current folder"; failures=$((failures + 1))
+    rm -rf "$work/cwd" && mkdir -p "$work/cwd"
+  fi
+}
+# Motion time: tangential limits, feeds, rapids, dwells and Taylor ramps, before planning.
+printf '[tangential]\nacceleration_mm_s2 = 1e-6\n' | cat "$work/line.toml" - > "$work/tacc.toml"
+bounded_case 1 tiny-tangential-acceleration "tacc.toml: the path (100 mm) takes at least 5.56 h with [tangential] acceleration_mm_s2 = 1e-06: 2e+07 setpoints at 1 ms, more than the 10 million" -- "$dtis" run "$work/tacc.toml" -o "$work/out.csv"
+printf '[tangential]\njerk_mm_s3 = 1e-9\n' | cat "$work/line.toml" - > "$work/tjerk9.toml"
+bounded_case 1 tiny-tangential-jerk "with [tangential] jerk_mm_s3 = 1e-09: 1.47e+07 setpoints" -- "$dtis" run "$work/tjerk9.toml" -o "$work/out.csv"
+cp "$root/samples/curves/nurbs_circle.toml" "$work/circle_curve.toml"
+sed 's|^file = .*|file = "circle_curve.toml"|; s|^machine = .*|machine = "mikron_ucp710_xyz.toml"|; s/^accel_time_s = .*/accel_time_s = 1e9/' \
+  "$root/samples/jobs/circle_taylor.toml" > "$work/taylor_ramp.toml"
+bounded_case 1 taylor-accel-time "taylor_ramp.toml: the path (314.159 mm) takes at least 5.56e+05 h with [interpolator] accel_time_s = 1e+09, more than the 24 h a job may take" -- "$dtis" run "$work/taylor_ramp.toml" -o "$work/out.csv"
+# G-code: the least time of the program's moves, rapids and dwells, naming the block; loops and
+# long programs bounded by [path] max_blocks (each repetition of a loop counted).
+for reader in dtis rs274; do
+  [ $reader = dtis ] && job="$work/gcode_dtis.toml" || job="$work/gcode.toml"
+  [ $reader = dtis ] || [ "$rs274" = rs274 ] || continue
+  printf 'G0 X0 Y0\nG1 X5 F0.0001\nM2\n' > "$work/bad.ngc"
+  bounded_case 1 "crawling-F-$reader" "bad.ngc:2: the program takes at least 833 h up to this block, more than the 24 h a job may take; this block alone takes 833 h: its move of 5 mm at F0.0001 mm/min" -- "$dtis" run "$job" -o "$work/out.csv"
+  printf 'rapid_feed_mm_min = 1e-9\n' | cat "$job" - > "$work/rapid_$reader.toml"
+  printf 'G0 X0 Y0\nG1 X5 F600\nG0 X10\nM2\n' > "$work/bad.ngc"
+  bounded_case 1 "crawling-rapid-$reader" "bad.ngc:3: the program takes at least 8.33e+07 h up to this block, more than the 24 h a job may take; this block alone takes 8.33e+07 h: its rapid of 5 mm at 1e-09 mm/min ([path] rapid_feed_mm_min" -- "$dtis" run "$work/rapid_$reader.toml" -o "$work/out.csv"
+done
+awk 'BEGIN { print "G0 X0 Y0"; for (i = 0; i < 1000000; i++) printf "G1 X%d Y%d F1000\n", i % 2, (i / 2) % 2; print "M2" }' > "$work/million.ngc"
+sed 's/bad.ngc/million.ngc/' "$work/gcode_dtis.toml" > "$work/million.toml"
+bounded_case 1 million-blocks "million.ngc:200001: the program runs more than 200000 blocks (each repetition of a loop counted), the most it may run here; max_blocks in the [path] of $work/million.toml raises it" -- "$dtis" run "$work/million.toml" -o "$work/out.csv"
+printf 'G0 X0 Y0\no100 while [1]\nG1 X10 F600\nG1 X0\no100 endwhile\nM2\n' > "$work/bad.ngc"
+bounded_case 1 while-loop-dtis "bad.ngc:2:1: O-words (subroutines, loops, conditionals) are not read by dtis' reader" -- "$dtis" run "$work/gcode_dtis.toml" -o "$work/out.csv"
+if [ "$rs274" = rs274 ]; then
+  bounded_case 1 while-loop-moves "the program runs more than 200000 blocks (each repetition of a loop counted)" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+  printf 'G0 X0 Y0\nG1 X10 F600\no100 while [1]\no100 endwhile\nM2\n' > "$work/bad.ngc"
+  bounded_case 1 while-loop-still "bad.ngc:3: the program runs more than 200000 blocks (each repetition of a loop counted)" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+  printf 'G0 X0 Y0\nG1 X10 F600\nG4 P100000\nG1 X20\nM2\n' > "$work/bad.ngc"
+  bounded_case 1 long-dwell "bad.ngc:4: the program takes at least 27.8 h up to this block, more than the 24 h a job may take; this block alone takes 27.8 h: a dwell (G4) of 100000 s before it" -- "$dtis" run "$work/gcode.toml" -o "$work/out.csv"
+fi
+# Surfaces: strategy lines bounded before any is traced.
+sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 0.000001/' "$work/surf.toml" > "$work/finestep.toml"
+bounded_case 1 tiny-stepover "finestep.toml:13: key 'strategy.stepover_mm': 1.66e+07 strategy lines, 1e-06 mm apart across [-9.40694, 7.16983] mm along the plane normal, more than the 10000 a face is traced with" -- "$dtis" run "$work/finestep.toml" -o "$work/out.csv"
+sed 's/^face = 3/face = 1/; s/^stepover_mm = 2/stepover_mm = 2\nrange = [-1e300, 1e300]/' "$work/surf.toml" > "$work/hugerange.toml"
+bounded_case 1 huge-range "hugerange.toml:14: key 'strategy.range': 1e+300 strategy lines, 2 mm apart across the range [-1e+300, 1e+300] mm, more than the 10000 a face is traced with" -- "$dtis" run "$work/hugerange.toml" -o "$work/out.csv"
+# Nonsense refused, naming the key and what was expected.
+printf '[interpolator]\nend_tolerance_mm = 1e6\n' | cat "$work/line.toml" - > "$work/endtol.toml"
+bounded_case 1 end-tolerance "endtol.toml:8: key 'interpolator.end_tolerance_mm': expected a distance up to 0.01 mm, got 1e+06" -- "$dtis" run "$work/endtol.toml" -o "$work/out.csv"
+printf '[interpolator]\ncommit_horizon = 1099511627776\n' | cat "$work/line.toml" - > "$work/horizon.toml"
+bounded_case 1 commit-horizon "horizon.toml:8: key 'interpolator.commit_horizon': expected 8 to 1073741824 periods (2^30), got 1099511627776" -- "$dtis" run "$work/horizon.toml"
+printf 'name = ""\n' | cat - "$work/line.toml" > "$work/noname_job.toml"
+bounded_case 1 empty-name "noname_job.toml:1: key 'name': expected a name (it names the outputs)" -- "$dtis" run "$work/noname_job.toml"
+printf 'degree = 2\nknots = [0, 0, 0, 1, 1, 1]\npoles = [[1, 2], [1, 2], [1, 2]]\n' > "$work/point_curve.toml"
+sed 's/knots.toml/point_curve.toml/' "$work/curvejob.toml" > "$work/pointjob.toml"
+bounded_case 1 coincident-poles "point_curve.toml:3: key 'poles': all 3 poles coincide at (1, 2, 0): the curve has zero length" -- "$dtis" run "$work/pointjob.toml" -o "$work/out.csv"
+bounded_case 1 jerk-time-tiny "mill.ini: jerk time (machine_jerk_time_ms or --jerk-time-ms) 1e-300 ms: expected a time from 0.1 to 10000 ms" -- "$dtis" machine import "$work/mill.ini" --jerk-time-ms 1e-300 -o "$work/out.toml"
+bounded_case 2 jerk-time-nan "--jerk-time-ms: expected a finite number > 0, got 'nan'" -- "$dtis" machine import "$work/mill.ini" --jerk-time-ms nan -o "$work/out.toml"
+printf 'machine_jerk_time_ms = 1e-300\n' | cat - "$work/ini_job.toml" > "$work/ini_tiny.toml"
+bounded_case 1 jerk-time-key "ini_tiny.toml:1: key 'machine_jerk_time_ms': expected a time from 0.1 to 10000 ms, got 1e-300" -- "$dtis" run "$work/ini_tiny.toml" -o "$work/out.csv"
+sed 's/^KINEMATICS = trivkins/KINEMATICS = trivkins\nJOINTS = 1000000000/' "$work/mill.ini" > "$work/joints.ini"
+bounded_case 1 ini-joints "joints.ini:3: [KINS] JOINTS: expected a whole number of joints from 1 to 16 (LinuxCNC's most), got '1000000000'" -- "$dtis" machine import "$work/joints.ini" --jerk-time-ms 20 -o "$work/out.toml"
+printf '[AXIS_X]\nMAX_VELOCITY = 1\n[AXIS_X]\nMAX_VELOCITY = 9\n' | cat "$work/mill.ini" - > "$work/twice.ini"
+bounded_case 1 ini-section-twice "twice.ini:23: [AXIS_X] appears a second time (first at $work/twice.ini:21); LinuxCNC reads only the first" -- "$dtis" machine import "$work/twice.ini" --jerk-time-ms 20 -o "$work/out.toml"
+# Messages: the file a link loop stands for, the key that makes a period too short, short
+# numbers in option errors, what a path given to `dtis faces` is.
+ln -s "$work/loop.toml" "$work/loop.toml"
+bounded_case 1 job-link-loop "loop.toml: cannot open: too many levels of symbolic links" -- "$dtis" run "$work/loop.toml" -o "$work/out.csv"
+sed 's|^machine = .*|machine = "loop.toml"|' "$work/line.toml" > "$work/loop_machine.toml"
+bounded_case 1 machine-link-loop "loop.toml: cannot open: too many levels of symbolic links" -- "$dtis" run "$work/loop_machine.toml" -o "$work/out.csv"
+sed 's/knots.toml/loop.toml/' "$work/curvejob.toml" > "$work/loop_curve.toml"
+bounded_case 1 curve-link-loop "loop.toml: cannot open: too many levels of symbolic links" -- "$dtis" run "$work/loop_curve.toml" -o "$work/out.csv"
+printf '[interpolator]\nlimit_fraction = 1e-300\n' | cat "$work/line.toml" - > "$work/fraction.toml"
+bounded_case 1 tiny-limit-fraction "fraction.toml: [interpolator] limit_fraction = 1e-300: at period_ms = 1 rounding the written positions of axis X" -- "$dtis" run "$work/fraction.toml" -o "$work/out.csv"
+sed 's/acceleration = 2.5$/acceleration = 1e-300/' "$work/mikron_ucp710_xyz.toml" > "$work/tinyacc.toml"
+sed 's/mikron_ucp710_xyz.toml/tinyacc.toml/' "$work/line.toml" > "$work/tinyacc_job.toml"
+bounded_case 1 tiny-axis-acceleration "tinyacc.toml: axis X's acceleration limit (1e-297 mm/s^2) is too small to plan at any period up to 100 ms" -- "$dtis" run "$work/tinyacc_job.toml" -o "$work/out.csv"
+printf 'period_ms = 0.01\n' | cat - "$work/line.toml" > "$work/short_period.toml"
+bounded_case 1 period-mikron "short_period.toml: period_ms = 0.01 is shorter than machine 'Mikron UCP 710 XYZ (Beudaert 2012, Table 1)' allows: rounding the written positions of axis X (near 400 mm) would eat more than 0.1 % of its jerk limit (5000 mm/s^3); expected period_ms of at least 0.166" -- "$dtis" run "$work/short_period.toml" -o "$work/out.csv"
+checks=$((checks + 1))
+err=$("$dtis" run "$work/line.toml" --threads -1 -o "$work/out.csv" 2>&1 >/dev/null)
+if [[ "$err" == *"--threads: expected a finite number >= 0, got '-1'"* ]] && [ ${#err} -lt 400 ]; then
+  echo "ok option-range-short"
+else
+  echo "FAIL option-range-short: $err"; failures=$((failures + 1))
+fi
+bounded_case 1 faces-directory "$work: is a directory, not a file" -- "$dtis" faces "$work"
+bounded_case 1 faces-fifo "fifo.toml: is a FIFO, not a file" -- "$dtis" faces "$work/fifo.toml"
+bounded_case 1 faces-device "/dev/zero: is a device, not a file" -- "$dtis" faces /dev/zero
 
 # Surface jobs' set-up: a part placed beyond the machine's travel is refused before any pass is
 # planned (the sample face's passes reach x = 400.25 mm), naming the pass and the axis; a face is

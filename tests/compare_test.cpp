@@ -298,6 +298,7 @@ void CheckCompare(const io::Job& job, const std::string& dir) {
       go.corners = job.compare.corners;
       go.rapid_feed_mm_s =
           job.surface->link_feed_mm_s > 0 ? job.surface->link_feed_mm_s : job.vpop.feed_mm_s;
+      go.start_at_first_move = true;  // at the first pass, as the exact variant starts
       const io::GcodePlan plan = io::BuildGcodePlan(back, *machine, job.vpop, go);
       const interp::ProgramResult program = interp::PlanProgram(plan.segments, *machine);
       io::TableSink sink(*machine, job.vpop.period_s);

@@ -597,7 +597,9 @@ TEST(GcodeProgram, TightCornerAboveAxisVelocityDoesNotGetStuck) {
       "G1 Z6.107334\n",
       "link.ngc");
   interp::VpopOptions o;
-  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, {});
+  io::GcodeOptions go;
+  go.from = {-10.099248, -5.288789, 5.726022};  // the machine is where the G0 goes
+  const io::GcodePlan plan = io::BuildGcodePlan(p, *machine, o, go);
   const interp::ProgramResult r = interp::PlanProgram(plan.segments, *machine, {});
   io::TableSink sink(*machine, o.period_s);
   for (const auto& sp : r.setpoints) sink.Accept(sp);
@@ -745,7 +747,29 @@ TEST(GcodeProgram, BadProgramsNameTheLine) {
   };
   EXPECT_EQ(error("G0 X0 Y0\nG1 X10 F600 A5\n"),
             "p.ngc: the program moves rotary axis A but machine 'test' has none");
-  EXPECT_EQ(error("G0 X0 Y0\n"), "p.ngc: the program never moves after its first positioning move");
+  EXPECT_EQ(error("G0 X0 Y0\n"),
+            "p.ngc: the program never moves from where it starts (0, 0, 0 mm)");
+}
+
+// A program starts where the machine is and its first move is planned, as LinuxCNC runs it: the
+// zigzag sample's first block cuts 5.2 mm from the origin (its [path] from), then 13 strokes of
+// 5 x 5 mm follow: 97.12 mm of polyline, a little less with the corners smoothed within 0.01 mm.
+// Taken as the start instead, the first cut was lost (91.92 mm).
+TEST(GcodeProgram, TheZigzagKeepsItsFirstCut) {
+  const io::Job job = io::LoadJob(test::Source("samples/jobs/zigzag.toml"));
+  const io::RunResult r = io::RunJob(job);
+  const double polyline = 5.2 + 13.0 * std::sqrt(50.0);
+  EXPECT_LT(r.path_length_mm, polyline);
+  EXPECT_GT(r.path_length_mm, polyline - 0.2);
+  EXPECT_TRUE(r.verify.Passed()) << r.verify.worst;
+  for (std::size_t i = 0; i < r.table.axes.size(); ++i) {
+    EXPECT_EQ(r.table.columns[i].front(), 0.0) << r.table.axes[i];  // at the origin
+  }
+  EXPECT_NEAR(r.table.columns[0].back(), 5.2 + 13 * 5.0, 1e-3);
+  // From elsewhere, the same cut is planned from there.
+  io::Job moved = job;
+  moved.path.gcode.from = {-10, 0, 0};
+  EXPECT_NEAR(io::RunJob(moved).path_length_mm, r.path_length_mm + 10.0, 1e-6);
 }
 
 TEST(GcodeProgram, SegmentsAreBuiltOneChainAtATime) {
@@ -850,6 +874,31 @@ TEST(PathSource, AnArcLengthARoundingErrorFromAKnownStateIsThatState) {
   const auto [start, moves] = ReadLockContour();
   test::ExpectRoundingStepsHold(geometry::G1Path(start, Vector3d::UnitZ(), moves, *machine),
                                 "lock G1 chain");
+}
+
+// A program's least time (each move's chord at its F, rapids at the rapid feed, dwells) is summed
+// as it is read, and the block at which it passes a day is an error naming it and what it takes.
+TEST(GcodePlan, TheLeastTimeOfAProgramIsBoundedNamingTheBlock) {
+  const auto machine =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  interp::VpopOptions base;
+  base.feed_mm_s = 1.0;
+  io::GcodeOptions options;
+  const io::GcodeProgram ok = io::ParseGcode("G0 X0 Y0\nG1 X10 F600\nG0 X20\nM2\n", "p.ngc");
+  const io::GcodePlan plan = io::BuildGcodePlan(ok, *machine, base, options);
+  // 10 mm at 10 mm/s, then 10 mm at the machine's rapid feed (sqrt(3) x 500 mm/s).
+  EXPECT_NEAR(plan.least_time_s, 1.0 + 10.0 / (std::sqrt(3.0) * 500.0), 1e-12);
+  test::ExpectError(
+      [&] {
+        io::BuildGcodePlan(io::ParseGcode("G0 X0 Y0\nG1 X10 F600\nG1 X15 F0.0001\nM2\n", "p.ngc"),
+                           *machine, base, options);
+      },
+      "p.ngc:3: the program takes at least 833 h up to this block, more than the 24 h a job may "
+      "take; this block alone takes 833 h: its move of 5 mm at F0.0001 mm/min");
+  io::GcodeOptions crawl = options;
+  crawl.rapid_feed_mm_s = 1e-9 / 60.0;
+  test::ExpectError([&] { io::BuildGcodePlan(ok, *machine, base, crawl); },
+                    "p.ngc:3: the program takes at least 1.67e+08 h");
 }
 
 }  // namespace

@@ -16,9 +16,9 @@
 namespace dtis::io {
 namespace {
 
-std::string ErrorOf(const std::string& text) {
+std::string ErrorOf(const std::string& text, const GcodeReadOptions& options = {}) {
   try {
-    ParseGcode(text, "p.ngc");
+    ParseGcode(text, "p.ngc", {}, options);
   } catch (const Error& e) {
     return e.what();
   }
@@ -131,6 +131,19 @@ TEST(Gcode, ReaderReportsABadBlockWhenItReachesIt) {
   }
 }
 
+// dtis' reader reads at most max_blocks lines, naming the first one past them.
+TEST(Gcode, ReadingIsBounded) {
+  const std::string three = "G0 X0\nG1 X1 F100\nG1 X2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 3;
+  o.remedy = "raise it";
+  EXPECT_EQ(ParseGcode(three, "p.ngc", {}, o).moves.size(), 3u);
+  EXPECT_EQ(ParseGcode(three + "\n\n", "p.ngc", {}, o).moves.size(), 3u);  // empty lines: no blocks
+  EXPECT_EQ(ErrorOf(three + "G1 X3\nM2\n", o),
+            "p.ngc:4: the program runs more than 3 blocks (each repetition of a loop counted), "
+            "the most it may run here; raise it");
+}
+
 // LinuxCNC tool tables: every word LinuxCNC writes, either case, '+' signs, comments.
 TEST(ToolTable, ReadsLinuxCncsFormat) {
   const ToolTable t = ParseToolTable(
@@ -174,6 +187,48 @@ TEST(ToolTable, BadLinesNameTheFileLineAndWord) {
       "tool.tbl:1: this is the tool table format of LinuxCNC before 2.4");
   test::ExpectError([] { LoadToolTable(test::Source("tests/data/gcode/missing.tbl")); },
                     "missing.tbl: cannot open the tool table");
+}
+
+// Work offsets: G54 … G59.3 from LinuxCNC's parameters (its parameter file, or the job's
+// [path.work_offsets]), the system in force from parameter 5220, G92 while 5210 is 1; axes a
+// block does not name stay where the machine is, which is where the program starts.
+TEST(Gcode, WorkOffsetsAndTheStartAreLinuxCncs) {
+  GcodeStart start;
+  start.tip = {1, 2, 30};
+  start.parameters = ParseParameters(
+      "5220\t2\n5221 100\n5222 0\n5223 -10\n5241 50 extra words are ignored\n5242 25\n"
+      "5243 -20\n5244 90\n5381 7\n",
+      "sim.var");
+  const GcodeProgram p = ParseGcode(
+      "G0 Z5\n"             // G55 in force (5220): Z5 - 20
+      "G0 X10 Y0 A0\n"      // G55: X60 Y25, A 90
+      "G54 G0 X10\n"        // G54: X110; Y stays
+      "G59.3 G1 Y1 F100\n"  // G59.3: Y1 (its Y offset 0); X stays
+      "G91 G1 X1\n",        // incremental: no offset
+      "p.ngc", start);
+  ASSERT_EQ(p.moves.size(), 5u);
+  const Eigen::Vector3d expected[] = {
+      {1, 2, -15}, {60, 25, -15}, {110, 25, -15}, {110, 1, -15}, {111, 1, -15}};
+  for (std::size_t k = 0; k < 5; ++k) {
+    EXPECT_LT((p.moves[k].to - expected[k]).norm(), 1e-12) << k;
+  }
+  EXPECT_EQ(p.moves[1].rotary[0], 90.0);
+  // G92 from the parameters, added to the work offset.
+  start.parameters = {{5210, 1}, {5211, 3}, {5221, 100}};
+  EXPECT_LT(
+      (ParseGcode("G0 X0 Y0 Z0\n", "p.ngc", start).moves[0].to - Eigen::Vector3d(103, 0, 0)).norm(),
+      1e-12);
+  // What the built-in reader cannot do, and bad files, are named.
+  start.parameters = {{5230, 15}};
+  test::ExpectError(
+      [&] { ParseGcode("G0 X1\n", "p.ngc", start); },
+      {"G54 turns the program 15 degrees about Z (parameter 5230)", "interpreter = \"rs274ngc\""});
+  start.parameters = {{5220, 12}};
+  test::ExpectError([&] { ParseGcode("G0 X1\n", "p.ngc", start); },
+                    "p.ngc: parameter 5220 (the coordinate system in force) is 12");
+  test::ExpectError([] { ParseParameters("5220 1\n5221 x\n", "sim.var"); },
+                    "sim.var:2: expected a parameter number and its value");
+  test::ExpectError([] { ReadParameterFile(test::Scratch("no-such.var")); }, "no-such.var");
 }
 
 }  // namespace

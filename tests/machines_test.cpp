@@ -381,5 +381,33 @@ TEST(LinuxcncIni, ErrorsNameTheFileLineAndKey) {
                     "m.ini: [KINS] KINEMATICS is missing");
 }
 
+// What LinuxCNC itself would refuse or ignore is refused, naming the line: a joint count past its
+// 16, a second section of a name whose first LinuxCNC reads alone, a jerk time out of range.
+TEST(LinuxcncIni, NonsenseIsRefused) {
+  const std::string dir = test::Source("tests/data/ini/");
+  const std::string trt = *ReadFileText(dir + "trt_inch.ini");
+  kinematics::MachineLoadOptions o;
+  o.jerk_time_s = 0.02;
+  EXPECT_NO_THROW(kinematics::ParseLinuxcncIni(trt, dir + "trt_inch.ini", o));
+  std::string joints = trt;
+  joints.replace(joints.find("[KINS]"), 6, "[KINS]\nJOINTS = 1000000000");
+  test::ExpectError([&] { kinematics::ParseLinuxcncIni(joints, dir + "trt_inch.ini", o); },
+                    "[KINS] JOINTS: expected a whole number of joints from 1 to 16 (LinuxCNC's "
+                    "most), got '1000000000'");
+  const std::string twice = trt + "\n[AXIS_X]\nMAX_VELOCITY = 99\n";
+  test::ExpectError([&] { kinematics::ParseLinuxcncIni(twice, dir + "trt_inch.ini", o); },
+                    {"[AXIS_X] appears a second time (first at " + dir + "trt_inch.ini:",
+                     "LinuxCNC reads only the first"});
+  // Sections dtis does not read may repeat, as LinuxCNC allows.
+  EXPECT_NO_THROW(kinematics::ParseLinuxcncIni(trt + "\n[DISPLAY]\nA = 1\n[DISPLAY]\nB = 2\n",
+                                               dir + "trt_inch.ini", o));
+  for (const double t : {1e-303, 0.0, -1.0, 20.0, std::nan("")}) {
+    kinematics::MachineLoadOptions bad;
+    bad.jerk_time_s = t;
+    test::ExpectError([&] { kinematics::ReadMachineDescription(dir + "trt_inch.ini", bad); },
+                      "(machine_jerk_time_ms or --jerk-time-ms)");
+  }
+}
+
 }  // namespace
 }  // namespace dtis

@@ -1,6 +1,7 @@
 // G-code through LinuxCNC's own interpreter (dtis-rs274): the programs post-processors write in
 // tests/data/gcode read, their arcs in every plane followed exactly, G64 P as the contour
 // tolerance, inverse-time feeds, and LinuxCNC's own messages for bad programs.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -380,6 +381,68 @@ TEST(Rs274Records, ReadIntoMovesOrAClearError) {
            {"D 3 -1\nX\n", "p.ngc:3: a dwell (G4) of -1 s: expected 0 to 1e6 s"}}) {
     test::ExpectError([&] { ParseRs274Records(record, "p.ngc"); }, message);
   }
+}
+
+// LinuxCNC's interpreter starts where the machine is, with the parameters it is given (its
+// parameter file's work offsets): the moves dtis' own reader finds for the same program.
+TEST_F(Rs274, WorkOffsetsAndTheStartAreWhatTheBuiltInReaderFinds) {
+  GcodeStart start;
+  start.tip = {1, 2, 30};
+  start.parameters = {{5220, 2},  {5221, 100}, {5223, -10}, {5241, 50},
+                      {5242, 25}, {5243, -20}, {5381, 7}};
+  const std::string file = test::Scratch("offsets.ngc");
+  std::ofstream(file) << "G0 Z5\nG0 X10 Y0\nG54 G0 X10\nG59.3 G1 Y1 F100\nG91 G1 X1\nM2\n";
+  const GcodeProgram linuxcnc = ReadGcode(file, GcodeInterpreter::kRs274ngc, nullptr, start);
+  const GcodeProgram ours = ReadGcode(file, GcodeInterpreter::kDtis, nullptr, start);
+  ASSERT_EQ(linuxcnc.moves.size(), 5u);
+  ASSERT_EQ(ours.moves.size(), 5u);
+  for (std::size_t k = 0; k < 5; ++k) {
+    EXPECT_LT((linuxcnc.moves[k].to - ours.moves[k].to).norm(), 1e-9) << k;
+  }
+  EXPECT_LT((linuxcnc.moves[0].to - Vector3d(1, 2, -15)).norm(), 1e-9);
+  EXPECT_LT((linuxcnc.moves[4].to - Vector3d(111, 1, -15)).norm(), 1e-9);
+  // G10 L2, which only LinuxCNC's interpreter reads, sets the same offsets.
+  std::ofstream(file) << "G10 L2 P2 X50 Y25 Z-20\nG55 G0 X10 Y0 Z5\nM2\n";
+  const GcodeProgram g10 = ReadGcode(file, GcodeInterpreter::kRs274ngc);
+  ASSERT_EQ(g10.moves.size(), 1u);
+  EXPECT_LT((g10.moves[0].to - Vector3d(60, 25, -15)).norm(), 1e-9);
+}
+
+// The notes list what the program asks that the machine would do: not M30's pallet shuttle (the
+// interpreter's way of ending a program), nor a G49 with no offset in force.
+TEST_F(Rs274, NotesNeitherM30NorALoneG49) {
+  const std::string file = test::Scratch("notes.ngc");
+  std::ofstream(file) << "G49\nG0 X10\nG43 H1\nG1 X20 F600\nG49\nM30\n";
+  const GcodeProgram p = ReadGcode(file, GcodeInterpreter::kRs274ngc);
+  std::string notes;
+  for (const auto& [what, count] : p.notes) notes += fmt::format("{} x {}\n", count, what);
+  EXPECT_EQ(notes,
+            "1 x tool length offset (G43): the machine applies it, dtis plans the tip\n"
+            "1 x tool length offset cancelled (G49)\n")
+      << notes;
+}
+
+// A loop that never ends, with or without moves, ends at max_blocks blocks executed (each
+// repetition counted), naming the first block past them.
+TEST_F(Rs274, LoopsEndAtTheBlockBudget) {
+  const std::string moving = test::Scratch("loop_moving.ngc");
+  std::ofstream(moving) << "G21 G90\nG0 X0 Y0\no100 while [1]\nG1 X10 F600\nG1 X0\n"
+                           "o100 endwhile\nM2\n";
+  const std::string still = test::Scratch("loop_still.ngc");
+  std::ofstream(still) << "G21 G90\nG0 X0 Y0\nG1 X10 F600\no100 while [1]\no100 endwhile\nM2\n";
+  GcodeReadOptions o;
+  o.max_blocks = 1000;
+  o.remedy = "the remedy";
+  for (const std::string& file : {moving, still}) {
+    test::ExpectError([&] { ReadGcode(file, GcodeInterpreter::kRs274ngc, nullptr, {}, o); },
+                      {"the program runs more than 1000 blocks (each repetition of a loop "
+                       "counted), the most it may run here; the remedy"});
+  }
+  test::ExpectError([&] { ReadGcode(still, GcodeInterpreter::kRs274ngc, nullptr, {}, o); },
+                    "loop_still.ngc:5: the program runs more than 1000 blocks");
+  // A program within the budget reads whole.
+  EXPECT_EQ(ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc, nullptr, {}, o).moves.size(),
+            ReadGcode(Corpus("inch.ngc"), GcodeInterpreter::kRs274ngc).moves.size());
 }
 
 }  // namespace

@@ -45,10 +45,13 @@ for job in "$root"/samples/jobs/*.toml; do
     }
     echo "sample $name, $planner: ok, $motion s (docs: $limit s)"
     if [ "$planner" = vpop ]; then vpop_motion=$motion; fi
-    # The look-ahead planner is never more than 0.5 % slower than the paper's.
+    # The look-ahead planner is never more than 0.5 % slower than the paper's, but on the
+    # zigzag's 90-degree corners 7 mm apart, where it is 3.0 % slower (docs/limits.md).
+    over=1.005
+    if [ "$name" = zigzag ]; then over=1.031; fi
     if [ "$planner" = lookahead ] && [ -n "$vpop_motion" ]; then
-      awk -v l="$motion" -v v="$vpop_motion" 'BEGIN { exit !(l <= 1.005 * v) }' || {
-        echo "sample $name: lookahead $motion s is more than 0.5 % over vpop's $vpop_motion s" >&2
+      awk -v l="$motion" -v v="$vpop_motion" -v o="$over" 'BEGIN { exit !(l <= o * v) }' || {
+        echo "sample $name: lookahead $motion s is more than $over x vpop's $vpop_motion s" >&2
         exit 1
       }
     fi

@@ -401,10 +401,15 @@ launcher = os.path.join(os.path.dirname(dtis), "dtis")
 for delay_ms in [0, 0, 1, 2, 5, 10, 20, 50, 100, 200]:
     p = subprocess.Popen([launcher, "stream", job, "--to", "/dev/null", "--pace", "realtime",
                           "--record", record, "-q"])
-    while True:  # until the launcher has blocked SIGINT (SigBlk bit 1)
+    # Until the launcher has blocked SIGINT (SigBlk bit 1) or dtis-main has caught it (SigCgt:
+    # it unblocks it then, so a poll may never see it blocked), within 10 s.
+    deadline = time.monotonic() + 10
+    while True:
+        assert p.poll() is None, f"dtis ended (exit {p.returncode}) before SIGINT was sent"
+        assert time.monotonic() < deadline, "SIGINT was neither blocked nor caught within 10 s"
         with open(f"/proc/{p.pid}/status") as f:
-            blk = next(l for l in f if l.startswith("SigBlk:")).split()[1]
-        if int(blk, 16) & 2:
+            fields = dict(l.split(":", 1) for l in f if l.startswith(("SigBlk:", "SigCgt:")))
+        if (int(fields["SigBlk"], 16) | int(fields["SigCgt"], 16)) & 2:
             break
     time.sleep(delay_ms / 1000)
     p.send_signal(signal.SIGINT)

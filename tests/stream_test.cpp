@@ -156,7 +156,8 @@ TEST(Stream, DwellsHoldAtRestInTheRunAndTheStream) {
     }
     program.close();
     std::ofstream(test::Scratch(name + ".toml")) << fmt::format(
-        "machine = \"{}\"\n[path]\nkind = \"gcode\"\nfile = \"{}.ngc\"\n", machine, name);
+        "machine = \"{}\"\n[path]\nkind = \"gcode\"\nfile = \"{}.ngc\"\nfrom = [0, 0, 5]\n",
+        machine, name);
     io::Job job = io::LoadJob(test::Scratch(name + ".toml"));
     job.vpop.commit_horizon = io::kStreamCommitHorizon;
     return job;
@@ -166,7 +167,8 @@ TEST(Stream, DwellsHoldAtRestInTheRunAndTheStream) {
   ASSERT_TRUE(run.verify.Passed());
   // 0.4 s before the first cut, 0.25 s at the bottom, 0.1 + 0.15 s at a corner, at 1 ms.
   EXPECT_EQ(run.table.Rows(), plain.table.Rows() + 400 + 250 + 250);
-  // The motion starts with the first move: the warm-up is before it.
+  // The machine starts where the program's G0 goes (its [path] from): the warm-up is before the
+  // motion.
   EXPECT_NEAR(run.verify.motion_time_s, plain.verify.motion_time_s + 0.5, 1e-9);
   // The rows are the plain ones with each dwell's rows inserted where it stands.
   const auto rows = RowsOf(run.table), plain_rows = RowsOf(plain.table);

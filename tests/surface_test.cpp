@@ -650,6 +650,23 @@ TEST(SurfaceErrors, NameTheFaceTheLineAndWhere) {
   EXPECT_NE(misses.find("misses the face"), std::string::npos) << misses;
 }
 
+// More strategy lines than kMaxLines (a stepover of a micrometre, a range of 1e300 mm) are
+// refused before any is traced, naming the key the job gave.
+TEST(SurfaceErrors, TooManyLinesAreRefusedNamingTheKey) {
+  StrategySpec spec;
+  spec.stepover_mm = 1e-6;
+  spec.stepover_key = "j.toml:9: key 'strategy.stepover_mm'";
+  const std::string fine = BuildError(kStrip, 1, Ball(1.0), spec);
+  EXPECT_EQ(fine.rfind("j.toml:9: key 'strategy.stepover_mm': ", 0), 0u) << fine;
+  EXPECT_NE(fine.find("more than the 10000 a face is traced with"), std::string::npos) << fine;
+  StrategySpec wide;
+  wide.stepover_mm = 2.0;
+  wide.range = std::array<double, 2>{-1e300, 1e300};
+  wide.range_key = "j.toml:10: key 'strategy.range'";
+  const std::string range = BuildError(kStrip, 1, Ball(1.0), wide);
+  EXPECT_EQ(range.rfind("j.toml:10: key 'strategy.range': 1e+300 strategy lines", 0), 0u) << range;
+}
+
 TEST(SurfaceErrors, AnOrientationTheMachineCannotHoldStopsThePlanWithWhere) {
   const StepModel m = StepModel::Load(test::Source(kStrip));
   const FaceSurface surface(m.Face(1), "strip");

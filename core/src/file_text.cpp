@@ -2,8 +2,11 @@
 
 #include <sys/stat.h>
 
+#include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -23,17 +26,31 @@ void RequireRegular(const std::string& path, const struct stat& st) {
   throw Error("{}: is {}, not a file; expected a regular file", path, what);
 }
 
+// Throws for a path that stat() could not follow for another reason than its absence (a loop of
+// symbolic links, a folder on the way that cannot be searched): the reason, in lower case.
+void RequireReachable(const std::string& path, int error) {
+  if (error == ENOENT) return;
+  std::string why = std::strerror(error);
+  if (!why.empty()) why[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(why[0])));
+  throw Error("{}: cannot open: {}", path, why);
+}
+
 }  // namespace
 
 void RequireRegularFile(const std::string& path) {
   struct stat st {};
-  if (stat(path.c_str(), &st) == 0) RequireRegular(path, st);
+  if (stat(path.c_str(), &st) != 0) return RequireReachable(path, errno);
+  RequireRegular(path, st);
 }
 
 std::optional<std::string> ReadFileText(const std::string& path) {
   struct stat st {};
-  if (stat(path.c_str(), &st) != 0) return std::nullopt;
+  if (stat(path.c_str(), &st) != 0) {
+    RequireReachable(path, errno);
+    return std::nullopt;
+  }
   RequireRegular(path, st);
+
   if (static_cast<std::uintmax_t>(st.st_size) > kMaxTextFileBytes) {
     throw Error("{}: {} bytes, larger than the {} GiB a text input may have", path, st.st_size,
                 kMaxTextFileBytes >> 30);

@@ -63,7 +63,8 @@ TomlTable TomlTable::ParseString(std::string_view text, const std::string& sourc
 TomlTable TomlTable::ParseFile(const std::string& path) {
   const std::optional<std::string> text = ReadFileText(path);
   if (!text) {
-    const bool exists = std::filesystem::exists(path);
+    std::error_code ec;
+    const bool exists = std::filesystem::exists(path, ec);
     throw Error("{}: cannot open ({}); check the path", path,
                 exists ? "permission denied or not a file" : "no such file");
   }

@@ -200,7 +200,9 @@ std::mutex& ReaderMutex() {
 }  // namespace
 
 StepModel StepModel::Load(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw Error("{}: no such file", path);
+  RequireRegularFile(path);  // a folder, a FIFO, a device, a loop of links: said what it is
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw Error("{}: no such file", path);
   CheckHeader(path);
   StepModel model;
   model.file_ = path;

@@ -71,6 +71,28 @@ std::optional<PlannerKind> PlannerFromName(std::string_view name) {
   return std::nullopt;
 }
 
+double PositionScale(const Axis& axis, const VpopOptions& options) {
+  double scale = options.position_scale;
+  if (!(scale > 0.0)) {
+    scale = axis.continuous ? 20.0 * std::numbers::pi
+                            : std::max(std::abs(axis.travel_min), std::abs(axis.travel_max));
+    if (!std::isfinite(scale)) scale = 1e4;
+  }
+  return scale;
+}
+
+double RoundingGuard(const Axis& axis, const VpopOptions& options) {
+  constexpr double kEps = 2.220446049250313e-16;
+  return 64.0 * kEps * (PositionScale(axis, options) + 1.0);
+}
+
+std::array<double, 3> ShortestPeriods(const Axis& axis, const VpopOptions& options) {
+  const double guard = RoundingGuard(axis, options), f = options.limit_fraction;
+  // The guard may take 0.1 % of each limit: guard / dt, 2 guard / dt^2 and 4 guard / dt^3.
+  return {guard / (1e-3 * f * axis.vmax), std::sqrt(2.0 * guard / (1e-3 * f * axis.amax)),
+          std::cbrt(4.0 * guard / (1e-3 * f * axis.jmax))};
+}
+
 bool VpopOptions::IsValid(std::string* why) const {
   const auto fail = [why](std::string message) {
     if (why) *why = std::move(message);
@@ -256,7 +278,6 @@ class Planner {
     if (!o_.IsValid(&why)) throw Error("interpolator options: {}", why);
     const auto axes = machine_.Axes();
     n_ = static_cast<int>(axes.size());
-    constexpr double kEps = 2.220446049250313e-16;
     for (int i = 0; i < n_; ++i) {
       const Axis& a = axes[static_cast<std::size_t>(i)];
       for (const double limit : {a.vmax, a.amax, a.jmax}) {
@@ -265,15 +286,8 @@ class Planner {
                       a.name);
         }
       }
-      // Rounding guard: writing positions (and degrees) and differencing them again moves a jerk
-      // by about 8 eps |q| / dt^3; plan that much below the limit so the verifier never reads > 1.
-      double scale = o_.position_scale;
-      if (!(scale > 0.0)) {
-        scale = a.continuous ? 20.0 * std::numbers::pi
-                             : std::max(std::abs(a.travel_min), std::abs(a.travel_max));
-        if (!std::isfinite(scale)) scale = 1e4;
-      }
-      const double guard = 64.0 * kEps * (scale + 1.0);
+      const double scale = PositionScale(a, o_);
+      const double guard = RoundingGuard(a, o_);
       Limits l;
       l.v = o_.limit_fraction * a.vmax - guard / dt_;
       l.a = o_.limit_fraction * a.amax - 2.0 * guard / (dt_ * dt_);

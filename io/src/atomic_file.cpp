@@ -1,5 +1,6 @@
 #include "dtis/io/atomic_file.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -14,8 +15,20 @@ namespace dtis::io {
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   const std::filesystem::path target(path_);
-  if (std::filesystem::is_directory(target)) {
-    throw Error("{}: is a folder; give a file name for the output", path_);
+  // What is there already (following a symbolic link, as writing it would).
+  struct stat st {};
+  if (::stat(path_.c_str(), &st) == 0) {
+    if (S_ISDIR(st.st_mode)) {
+      throw Error("{}: is a folder; give a file name for the output", path_);
+    }
+    if (S_ISBLK(st.st_mode) || S_ISSOCK(st.st_mode)) {
+      throw Error("{}: is a {}, not a file; give a file name for the output", path_,
+                  S_ISBLK(st.st_mode) ? "block device" : "socket");
+    }
+    if (!S_ISREG(st.st_mode)) {
+      OpenInPlace();
+      return;
+    }
   }
   std::string name = target.filename().string();
   name.insert(0, 1, '.');
@@ -32,7 +45,26 @@ AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
     std::remove(temp_.c_str());
     throw Error("{}: cannot open the temporary output file", path_);
   }
-  // Each file its own buffer: several may be open at once (a run's setpoints and limiters).
+  Buffer();
+}
+
+// A device or a FIFO: renaming a file over it would replace it (a FIFO's reader would wait for
+// ever, /dev/null would become a file), so it is opened and written as it is. Opening a FIFO waits
+// for its reader, as any program writing one does.
+void AtomicFile::OpenInPlace() {
+  in_place_ = true;
+  const int fd = ::open(path_.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) throw Error("{}: cannot open it for writing ({})", path_, std::strerror(errno));
+  file_ = fdopen(fd, "wb");
+  if (!file_) {
+    ::close(fd);
+    throw Error("{}: cannot open it for writing ({})", path_, std::strerror(errno));
+  }
+  Buffer();
+}
+
+// Each file its own buffer: several may be open at once (a run's setpoints and limiters).
+void AtomicFile::Buffer() {
   buffer_.resize(1 << 16);
   std::setvbuf(file_, buffer_.data(), _IOFBF, buffer_.size());
 }
@@ -49,6 +81,18 @@ void AtomicFile::Write(std::string_view text) {
 }
 
 void AtomicFile::Commit() {
+  if (in_place_) {
+    // Neither synced nor renamed: a device or a FIFO takes what is written as it comes.
+    const bool flushed = std::fflush(file_) == 0;
+    const int flush_errno = errno;
+    const bool closed = std::fclose(file_) == 0;
+    file_ = nullptr;
+    if (!flushed || !closed) {
+      throw Error("{}: write failed ({})", path_, std::strerror(flushed ? errno : flush_errno));
+    }
+    committed_ = true;
+    return;
+  }
   if (std::fflush(file_) != 0 || fsync(fileno(file_)) != 0) {
     throw Error("{}: write failed ({})", path_, std::strerror(errno));
   }
@@ -62,6 +106,15 @@ void AtomicFile::Commit() {
     throw Error("{}: cannot move the output in place ({})", path_, std::strerror(errno));
   }
   committed_ = true;
+}
+
+void CommitTogether(const std::vector<AtomicFile*>& files) {
+  for (AtomicFile* f : files) {
+    if (f && f->InPlace()) f->Commit();
+  }
+  for (AtomicFile* f : files) {
+    if (f && !f->InPlace()) f->Commit();
+  }
 }
 
 void WriteFileAtomically(const std::string& path, std::string_view text) {

@@ -192,6 +192,7 @@ VariantResult G1Variant(const Context& c, double tol) {
   GcodeOptions go;
   go.corners = spec.corners;
   go.rapid_feed_mm_s = c.setup.link_options.feed_mm_s;
+  go.start_at_first_move = true;  // at the first pass, as the exact variant
   const GcodePlan plan = BuildGcodePlan(g.program, c.machine, c.job.vpop, go);
   interp::ProgramOptions po;
   po.threads = c.options.threads;

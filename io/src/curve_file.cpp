@@ -1,5 +1,9 @@
 #include "dtis/io/curve_file.hpp"
 
+#include <fmt/format.h>
+
+#include <algorithm>
+
 #include "dtis/core/error.hpp"
 #include "dtis/core/toml_reader.hpp"
 
@@ -16,6 +20,15 @@ geometry::BSplineCurve ReadCurve(TomlTable& t, int degree, const std::vector<dou
   const int poles_line = t.Line("poles");
   if (t.Has("weights")) data.weights = t.Numbers("weights");
   const int weights_line = t.Line("weights");
+  // A curve that stays on one point is no path (as a line of zero length is none).
+  if (!data.poles.empty() && std::all_of(data.poles.begin(), data.poles.end(), [&](const auto& p) {
+        return (p - data.poles.front()).norm() <= 1e-9;
+      })) {
+    t.Fail("poles", fmt::format("all {} poles coincide at ({:g}, {:g}, {:g}): the curve has zero "
+                                "length; expected poles that move",
+                                data.poles.size(), data.poles.front().x(), data.poles.front().y(),
+                                data.poles.front().z()));
+  }
   try {
     return geometry::BSplineCurve(std::move(data), "curve");
   } catch (const Error& e) {

@@ -265,7 +265,9 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
     written.push_back((fs::path(out_dir) / (f.name + "." + f.format)).string());
     files.emplace_back(written.back()).Write(f.bytes);
   }
-  for (auto& f : files) f.Commit();
+  std::vector<AtomicFile*> all;
+  for (auto& f : files) all.push_back(&f);
+  CommitTogether(all);
   return written;
 }
 

@@ -24,9 +24,17 @@ struct Modal {
   bool incremental = false;
   double to_mm = 1.0;  // G21; 25.4 after G20
   double feed_mm_min = 0.0;
+  // Where the machine is (offsets applied: the machine frame), mm and degrees.
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   std::array<double, 3> rotary{};
+  int system = 1;  // G54
 };
+
+// A parameter's value, LinuxCNC's default 0 when not given.
+double Parameter(const std::map<int, double>& parameters, int number) {
+  const auto it = parameters.find(number);
+  return it == parameters.end() ? 0.0 : it->second;
+}
 
 struct Word {
   char letter;
@@ -39,7 +47,37 @@ struct Word {
 // One block at a time: the modal state, and the move the last block made (at most one).
 class GcodeReader::Blocks {
  public:
-  explicit Blocks(std::string name) : file_(std::move(name)) {}
+  Blocks(std::string name, const GcodeStart& start) : file_(std::move(name)) {
+    modal_.position = start.tip;
+    modal_.rotary = start.rotary;
+    const auto& p = start.parameters;
+    if (const auto it = p.find(kCoordinateSystemParameter); it != p.end()) {
+      if (!(it->second >= 1 && it->second <= 9 && it->second == std::round(it->second))) {
+        throw Error(
+            "{}: parameter {} (the coordinate system in force) is {}; expected 1 (G54) "
+            "to 9 (G59.3)",
+            file_, kCoordinateSystemParameter, it->second);
+      }
+      modal_.system = static_cast<int>(it->second);
+    }
+    for (int n = 1; n <= 9; ++n) {
+      for (std::size_t k = 0; k < 6; ++k) {
+        offsets_[static_cast<std::size_t>(n - 1)][k] =
+            Parameter(p, WorkOffsetParameter(n) + static_cast<int>(k));
+      }
+      if (const double r = Parameter(p, WorkOffsetParameter(n) + 9); r != 0.0) {
+        throw Error(
+            "{}: {} turns the program {} degrees about Z (parameter {}): dtis' own reader does "
+            "not turn work offsets; read the program with LinuxCNC's interpreter (interpreter = "
+            "\"rs274ngc\" in the job's [path])",
+            file_, CoordinateSystemName(n), r, WorkOffsetParameter(n) + 9);
+      }
+    }
+    // G92, kept by LinuxCNC in parameters 5211 … while 5210 is 1.
+    if (Parameter(p, 5210) == 1.0) {
+      for (std::size_t k = 0; k < 6; ++k) g92_[k] = Parameter(p, 5211 + static_cast<int>(k));
+    }
+  }
 
   // Returns false after M2/M30 (the program's end: later lines are not read).
   bool Line(std::string_view text, int line) {
@@ -86,6 +124,12 @@ class GcodeReader::Blocks {
       if (!std::isalpha(static_cast<unsigned char>(c))) {
         Fail(column, fmt::format("expected a word (a letter and a number), got '{}'", c));
       }
+      if (letter == 'O') {
+        Fail(column,
+             "O-words (subroutines, loops, conditionals) are not read by dtis' reader; read the "
+             "program with LinuxCNC's interpreter (interpreter = \"rs274ngc\" in the job's "
+             "[path])");
+      }
       ++i;
       while (i < n && (text[i] == ' ' || text[i] == '\t')) ++i;
       // A number: [+-] digits [. digits], NGC style (".5", "5.", "-0.25").
@@ -118,6 +162,17 @@ class GcodeReader::Blocks {
   }
 
   static bool IsCode(double value, double code) { return std::abs(value - code) < 1e-9; }
+  // G54 … G59, G59.1 … G59.3: 1 … 9; 0 for any other code.
+  static int CoordinateSystem(double code) {
+    for (int n = 1; n <= 9; ++n) {
+      if (IsCode(code, n <= 6 ? 53.0 + n : 59.0 + 0.1 * (n - 6))) return n;
+    }
+    return 0;
+  }
+  // The offset of axis k (X Y Z A B C) in force: the work offset's and G92's, mm or degrees.
+  double Offset(std::size_t k) const {
+    return offsets_[static_cast<std::size_t>(modal_.system - 1)][k] + g92_[k];
+  }
 
   bool Block(const std::vector<Word>& words) {
     std::optional<GcodeMove::Kind> motion;
@@ -147,9 +202,11 @@ class GcodeReader::Blocks {
           } else if (IsCode(w.value, 17) || IsCode(w.value, 94) || IsCode(w.value, 40) ||
                      IsCode(w.value, 49) || IsCode(w.value, 80)) {
             // XY plane, feed per minute, compensation and canned-cycle cancels: nothing to do.
+          } else if (const int system = CoordinateSystem(w.value); system > 0) {
+            modal_.system = system;
           } else {
             Fail(w.column, fmt::format("G{} is not supported (supported: G0 G1 G2 G3 G17 G20 G21 "
-                                       "G40 G49 G80 G90 G91 G94)",
+                                       "G40 G49 G54-G59.3 G80 G90 G91 G94)",
                                        w.value));
           }
           break;
@@ -224,14 +281,15 @@ class GcodeReader::Blocks {
     for (int k = 0; k < 3; ++k) {
       if (!axis[static_cast<std::size_t>(k)]) continue;
       const double v = *axis[static_cast<std::size_t>(k)] * modal_.to_mm;
-      to[k] = modal_.incremental ? to[k] + v : v;
+      to[k] = modal_.incremental ? to[k] + v : v + Offset(static_cast<std::size_t>(k));
     }
     std::array<double, 3> rotary = modal_.rotary;
     for (int k = 0; k < 3; ++k) {
       const auto& w = axis[static_cast<std::size_t>(k + 3)];
       if (!w) continue;
-      rotary[static_cast<std::size_t>(k)] =
-          modal_.incremental ? rotary[static_cast<std::size_t>(k)] + *w : *w;
+      rotary[static_cast<std::size_t>(k)] = modal_.incremental
+                                                ? rotary[static_cast<std::size_t>(k)] + *w
+                                                : *w + Offset(static_cast<std::size_t>(k + 3));
       uses_rotary_[static_cast<std::size_t>(k)] = true;
     }
     m.to = to;
@@ -286,17 +344,29 @@ class GcodeReader::Blocks {
 
   std::string file_;
   Modal modal_;
+  std::array<std::array<double, 6>, 9> offsets_{};  // G54 … G59.3: X Y Z (mm) A B C (deg)
+  std::array<double, 6> g92_{};
   int line_ = 0;
   std::vector<Word> words_;
   std::optional<GcodeMove> move_;
   std::array<bool, 3> uses_rotary_{};
 };
 
+std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOptions& options) {
+  return fmt::format(
+      "{}:{}: the program runs more than {} blocks (each repetition of a loop counted), the most "
+      "it may run here{}",
+      file, line, options.max_blocks, options.remedy.empty() ? "" : "; " + options.remedy);
+}
+
 GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
-                         std::shared_ptr<const ToolTable> tools, Cancel* cancel)
-    : blocks_(std::make_unique<Blocks>(path)) {
+                         std::shared_ptr<const ToolTable> tools, Cancel* cancel,
+                         const GcodeStart& start, const GcodeReadOptions& options)
+    : options_(options),
+      blocks_(interpreter == GcodeInterpreter::kRs274ngc ? nullptr
+                                                         : std::make_unique<Blocks>(path, start)) {
   if (interpreter == GcodeInterpreter::kRs274ngc) {
-    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel);
+    rs274_ = std::make_unique<Rs274Reader>(path, std::move(tools), cancel, start, options);
     return;
   }
   if (tools) {
@@ -310,12 +380,13 @@ GcodeReader::GcodeReader(const std::string& path, GcodeInterpreter interpreter,
   if (!*in_) throw Error("{}: cannot open the G-code file", path);
 }
 
-GcodeReader::GcodeReader(std::string_view text, const std::string& source_name)
-    : blocks_(std::make_unique<Blocks>(source_name)), text_(text) {}
+GcodeReader::GcodeReader(std::string_view text, const std::string& source_name,
+                         const GcodeStart& start, const GcodeReadOptions& options)
+    : options_(options), blocks_(std::make_unique<Blocks>(source_name, start)), text_(text) {}
 
 GcodeReader::~GcodeReader() = default;
 
-const std::string& GcodeReader::File() const { return blocks_->File(); }
+const std::string& GcodeReader::File() const { return rs274_ ? rs274_->File() : blocks_->File(); }
 const std::array<bool, 3>& GcodeReader::UsesRotary() const {
   return rs274_ ? rs274_->UsesRotary() : blocks_->UsesRotary();
 }
@@ -340,6 +411,11 @@ std::optional<GcodeMove> GcodeReader::Next() {
       offset_ = end == std::string_view::npos ? text_.size() + 1 : end + 1;
     }
     if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    // Lines with something on them count (a text's last newline ends no empty block).
+    if (!l.empty() && options_.max_blocks > 0 && ++blocks_read_ > options_.max_blocks) {
+      ended_ = true;
+      throw Error("{}", TooManyBlocks(File(), line_ + 1, options_));
+    }
     if (!blocks_->Line(l, ++line_)) ended_ = true;
     if (std::optional<GcodeMove> move = blocks_->TakeMove()) return move;
   }
@@ -362,8 +438,9 @@ GcodeProgram ReadAll(Reader& reader) {
 
 }  // namespace
 
-GcodeProgram ParseGcode(std::string_view text, const std::string& source_name) {
-  GcodeReader reader(text, source_name);
+GcodeProgram ParseGcode(std::string_view text, const std::string& source_name,
+                        const GcodeStart& start, const GcodeReadOptions& options) {
+  GcodeReader reader(text, source_name, start, options);
   return ReadAll(reader);
 }
 
@@ -373,9 +450,58 @@ GcodeProgram ParseRs274Records(std::string_view records, const std::string& sour
 }
 
 GcodeProgram ReadGcode(const std::string& path, GcodeInterpreter interpreter,
-                       std::shared_ptr<const ToolTable> tools) {
-  GcodeReader reader(path, interpreter, std::move(tools));
+                       std::shared_ptr<const ToolTable> tools, const GcodeStart& start,
+                       const GcodeReadOptions& options) {
+  GcodeReader reader(path, interpreter, std::move(tools), nullptr, start, options);
   return ReadAll(reader);
+}
+
+std::string CoordinateSystemName(int system) {
+  return system <= 6 ? fmt::format("G{}", 53 + system) : fmt::format("G59.{}", system - 6);
+}
+
+std::map<int, double> ParseParameters(std::string_view text, const std::string& source_name) {
+  std::map<int, double> parameters;
+  int line = 0;
+  for (std::size_t at = 0; at <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    std::string_view l = text.substr(at, end - at);
+    at = end + 1;
+    ++line;
+    const auto skip = [&l] {
+      while (!l.empty() && std::isspace(static_cast<unsigned char>(l.front()))) l.remove_prefix(1);
+    };
+    skip();
+    if (l.empty()) continue;
+    int number = 0;
+    double value = 0.0;
+    auto [p, ec] = std::from_chars(l.data(), l.data() + l.size(), number);
+    bool ok = ec == std::errc() && p != l.data() + l.size() &&
+              std::isspace(static_cast<unsigned char>(*p));
+    if (ok) {
+      l.remove_prefix(static_cast<std::size_t>(p - l.data()));
+      skip();
+      if (!l.empty() && l.front() == '+') l.remove_prefix(1);
+      auto [q, ec2] = std::from_chars(l.data(), l.data() + l.size(), value);
+      ok = ec2 == std::errc() && std::isfinite(value) &&
+           (q == l.data() + l.size() || std::isspace(static_cast<unsigned char>(*q)));
+    }
+    if (!ok || number < 1) {
+      throw Error(
+          "{}:{}: expected a parameter number and its value (\"5221 10.5\"), as in LinuxCNC's "
+          "parameter file",
+          source_name, line);
+    }
+    parameters[number] = value;
+  }
+  return parameters;
+}
+
+std::map<int, double> ReadParameterFile(const std::string& path) {
+  RequireRegularFile(path);
+  const std::optional<std::string> text = ReadFileText(path);
+  if (!text) throw Error("{}: cannot open the parameter file; check the path", path);
+  return ParseParameters(*text, path);
 }
 
 }  // namespace dtis::io

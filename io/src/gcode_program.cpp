@@ -11,6 +11,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
 #include "dtis/geometry/curve_path.hpp"
+#include "dtis/io/setpoint_file.hpp"
 #include "dtis/io/tool_table.hpp"
 
 namespace dtis::io {
@@ -51,6 +52,35 @@ std::array<int, 3> RotaryWordAxes(const Machine& machine) {
   return index;
 }
 
+GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine) {
+  GcodeStart start;
+  start.parameters = options.parameters;
+  const int axes = machine.AxisCount();
+  if (options.from.empty()) return start;
+  const int given = static_cast<int>(options.from.size());
+  if (given != 3 && given != axes) {
+    throw Error("from: {} values; machine '{}' has {} axes: give X, Y, Z{} (mm{})", given,
+                machine.Name(), axes, axes > 3 ? " or every axis" : "",
+                axes > 3 ? ", degrees" : "");
+  }
+  std::vector<double> values = options.from;
+  values.resize(static_cast<std::size_t>(axes), 0.0);
+  start.tip = Vector3d(values[0], values[1], values[2]);
+  const std::array<int, 3> rotary = RotaryWordAxes(machine);
+  for (std::size_t k = 0; k < 3; ++k) {
+    if (rotary[k] >= 0) start.rotary[k] = values[static_cast<std::size_t>(rotary[k])];
+  }
+  return start;
+}
+
+std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine) {
+  std::vector<double> values(static_cast<std::size_t>(machine.AxisCount()));
+  FileUnits(machine).FromPlanner(q, values.data());
+  const Vector3d tip = machine.Forward(q).tip;
+  for (int k = 0; k < 3; ++k) values[static_cast<std::size_t>(k)] = tip[k];
+  return values;
+}
+
 GcodeToolAxis::GcodeToolAxis(const GcodeProgram& program, const Machine& machine)
     : GcodeToolAxis(program.file, program.uses_rotary, machine) {}
 
@@ -83,6 +113,12 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
       base_(base),
       options_(options),
       rapid_feed_(RapidFeed(options, machine)) {
+  // The program starts where the machine is.
+  const GcodeStart start = GcodeStartOf(options, machine);
+  tip_ = start_tip_ = start.tip;
+  GcodeMove at;
+  at.rotary = start.rotary;
+  axis_ = axis_of_(at);
   if (options.tool_table) {
     const std::array<int, 3> rotary = RotaryWordAxes(machine);
     if (std::any_of(rotary.begin(), rotary.end(), [](int axis) { return axis >= 0; })) {
@@ -94,6 +130,16 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
           file_, options.tool_table->file, machine.Name());
     }
   }
+}
+
+GcodeReadOptions JobReadOptions(const GcodeOptions& options, const std::string& job_file) {
+  GcodeReadOptions read;
+  read.max_blocks = options.max_blocks;
+  read.remedy = fmt::format(
+      "max_blocks in the [path] of {} raises it (each block held costs about 1 KB; dtis stream "
+      "reads a longer program in constant memory)",
+      job_file);
+  return read;
 }
 
 double RapidFeed(const GcodeOptions& options, const Machine& machine) {
@@ -229,8 +275,33 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     r.rest_before = m.rest_before || std::exchange(skipped_rest_, false);
     r.dwell_s = m.dwell_s + std::exchange(skipped_dwell_, 0.0);
     if (m.kind == GcodeMove::Kind::kNurbs) r.nurbs = NurbsCurve(*m.nurbs, file_, m.line);
+    CountLeastTime(m, r);
     return r;
   }
+}
+
+void GcodeSegments::CountLeastTime(const GcodeMove& m, const Read& r) {
+  // An arc or a curve is no shorter than its chord.
+  const double chord = (m.to - tip_).norm();
+  const double move_s = chord / r.feed, block_s = move_s + r.dwell_s;
+  least_s_ += block_s;
+  if (least_s_ <= base_.max_motion_s) return;
+  std::string what;
+  if (r.dwell_s >= move_s) {
+    what = fmt::format("a dwell (G4) of {:.6g} s before it", r.dwell_s);
+  } else if (r.rapid) {
+    what = fmt::format(
+        "its rapid of {:.6g} mm at {:.6g} mm/min ([path] rapid_feed_mm_min, or the "
+        "machine's velocities)",
+        chord, r.feed * 60.0);
+  } else {
+    what = fmt::format("its move of {:.6g} mm at F{:.6g} mm/min", chord, r.feed * 60.0);
+  }
+  throw Error(
+      "{}:{}: the program takes at least {:.3g} h up to this block, more than the {:g} h a job may "
+      "take; this block alone takes {:.3g} h: {}{}",
+      file_, m.line, least_s_ / 3600.0, base_.max_motion_s / 3600.0, block_s / 3600.0, what,
+      block_s < 0.01 * least_s_ ? " (does a loop repeat more often than meant?)" : "");
 }
 
 // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids. A chain ends
@@ -298,13 +369,13 @@ std::optional<geometry::ChainMove> GcodeSegments::PullJoined() {
 }
 
 std::optional<GcodeSegment> GcodeSegments::Next() {
-  if (!started_) {
+  if (!started_ && options_.start_at_first_move) {
     const std::optional<GcodeMove> first = next_();
     if (!first) throw Error("{}: the program has no moves", file_);
-    tip_ = first->to;
+    tip_ = start_tip_ = first->to;
     axis_ = axis_of_(*first);
-    started_ = true;
   }
+  started_ = true;
   while (windowed_open_) PullJoined();  // what a windowed chain was not asked to read
   while (!ended_) {
     std::optional<Read> r = ReadMove();
@@ -333,7 +404,8 @@ std::optional<GcodeSegment> GcodeSegments::Next() {
     return Flush();
   }
   if (segments_ == 0) {
-    throw Error("{}: the program never moves after its first positioning move", file_);
+    throw Error("{}: the program never moves from where it starts ({:g}, {:g}, {:g} mm)", file_,
+                start_tip_.x(), start_tip_.y(), start_tip_.z());
   }
   return std::nullopt;
 }
@@ -361,6 +433,7 @@ GcodePlan BuildGcodePlan(const GcodeProgram& program, const Machine& machine,
     plan.paths.push_back(std::move(s->path));
   }
   plan.rapids = segments.Rapids();
+  plan.least_time_s = segments.LeastTime();
   return plan;
 }
 

@@ -12,6 +12,7 @@
 #include <future>
 #include <mutex>
 #include <numbers>
+#include <optional>
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/toml_reader.hpp"
@@ -67,6 +68,45 @@ void ReadCompare(TomlTable& root, Job* job) {
   t->RejectUnknown();
 }
 
+// Where a G-code program starts and the offsets it starts with, as LinuxCNC holds them: the
+// machine's position (`from`), its parameter file (`parameters`) and work offsets given in the job
+// ([path.work_offsets], over the file's).
+void ReadGcodeStart(TomlTable& path, const std::string& job_file, GcodeOptions* gcode) {
+  if (path.Has("from")) {
+    gcode->from = path.Numbers("from");
+    if (gcode->from.size() < 3 || gcode->from.size() > 6) {
+      path.Fail("from", fmt::format("expected where the machine is, [X, Y, Z] (mm) or with its "
+                                    "rotary axes (degrees), got {} values",
+                                    gcode->from.size()));
+    }
+  }
+  if (auto file = path.OptionalString("parameters")) {
+    gcode->parameters = ReadParameterFile(ResolveRelative(job_file, *file));
+  }
+  if (auto offsets = path.OptionalTable("work_offsets")) {
+    for (const std::string& key : offsets->Keys()) {
+      int system = 0;
+      for (int n = 1; n <= 9; ++n) {
+        if (key == CoordinateSystemName(n)) system = n;
+      }
+      if (system == 0) {
+        offsets->Fail(key, "expected a coordinate system, G54 to G59 or \"G59.1\" to \"G59.3\"");
+      }
+      const std::vector<double> v = offsets->Numbers(key);
+      if (v.size() != 3 && v.size() != 6) {
+        offsets->Fail(key, fmt::format("expected [X, Y, Z] (mm) or [X, Y, Z, A, B, C] (mm, "
+                                       "degrees), got {} values",
+                                       v.size()));
+      }
+      for (std::size_t k = 0; k < 6; ++k) {
+        gcode->parameters[WorkOffsetParameter(system) + static_cast<int>(k)] =
+            k < v.size() ? v[k] : 0.0;
+      }
+    }
+    offsets->RejectUnknown();
+  }
+}
+
 void ReadPath(TomlTable& root, Job* out) {
   Job& job = *out;
   TomlTable path = root.Table("path");
@@ -94,11 +134,18 @@ void ReadPath(TomlTable& root, Job* out) {
       job.path.gcode.rapid_feed_mm_s = *r / 60.0;
     }
     if (auto b = path.OptionalBoolean("blend_rapids")) job.path.gcode.blend_rapids = *b;
+    if (auto m = path.OptionalInteger("max_blocks")) {
+      if (*m < 0) {
+        path.Fail("max_blocks", fmt::format("expected 0 (no limit) or more blocks, got {}", *m));
+      }
+      job.path.gcode.max_blocks = static_cast<long>(*m);
+    }
     if (auto w = path.OptionalInteger("window_blocks")) {
       if (*w < 0) path.Fail("window_blocks", fmt::format("expected 0 or more blocks, got {}", *w));
       job.path.gcode.window_blocks = static_cast<std::size_t>(*w);
     }
     if (path.Has("tool_axis")) path.Fail("tool_axis", "a G-code program sets its own tool axis");
+    ReadGcodeStart(path, job.file, &job.path.gcode);
     path.RejectUnknown();
     return;
   }
@@ -262,12 +309,17 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   }
   s.stepover_mm = stepover.value_or(0.0);
   s.scallop_mm = scallop.value_or(0.0);
+  const auto key = [&](std::string_view k) {
+    return fmt::format("{}:{}: key '{}'", file, st.Line(k), st.KeyPath(k));
+  };
+  s.stepover_key = key(stepover ? "stepover_mm" : "scallop_mm");
   if (st.Has("range")) {
     const std::vector<double> r = st.Numbers("range");
     if (r.size() != 2 || !(r[0] <= r[1])) {
       st.Fail("range", "expected [first, last] with first <= last");
     }
     s.range = std::array<double, 2>{r[0], r[1]};
+    s.range_key = key("range");
   }
   const auto bounds_min = st.OptionalPoint("bounds_min_mm");
   const auto bounds_max = st.OptionalPoint("bounds_max_mm");
@@ -312,15 +364,35 @@ SurfaceSpec ReadSurface(TomlTable& root, const std::string& file) {
   return spec;
 }
 
+// The name places the outputs a job does not name (NAME.csv): inside the current folder, as
+// [output] paths are, and never empty (".csv").
+void CheckJobName(TomlTable& root, const std::string& name) {
+  const std::filesystem::path p(name);
+  bool up = false;
+  for (const auto& part : p) up = up || part == "..";
+  if (name.empty() || p.is_absolute() || up || !p.has_filename()) {
+    root.Fail("name", fmt::format("expected a name for the outputs (NAME.csv) inside the current "
+                                  "folder (not empty, not absolute, no '..'), got '{}'",
+                                  name));
+  }
+}
+
 Job ReadJob(TomlTable& root) {
   Job job;
   job.file = root.File();
   job.name = root.OptionalString("name").value_or(std::filesystem::path(job.file).stem().string());
+  if (root.Has("name")) CheckJobName(root, job.name);
   job.machine_file = ResolveRelative(job.file, root.String("machine"));
   if (auto t = root.OptionalPositiveNumber("machine_jerk_time_ms")) {
     if (!kinematics::IsLinuxcncIni(job.machine_file)) {
       root.Fail("machine_jerk_time_ms",
                 "only used with a LinuxCNC INI machine; a machine file states every jerk");
+    }
+    using Load = kinematics::MachineLoadOptions;
+    if (!(*t * 1e-3 >= Load::kMinJerkTimeS && *t * 1e-3 <= Load::kMaxJerkTimeS)) {
+      root.Fail("machine_jerk_time_ms",
+                fmt::format("expected a time from {:g} to {:g} ms, got {:g}",
+                            Load::kMinJerkTimeS * 1e3, Load::kMaxJerkTimeS * 1e3, *t));
     }
     job.machine_options.jerk_time_s = *t * 1e-3;
   }
@@ -371,10 +443,19 @@ Job ReadJob(TomlTable& root) {
         in->Fail("limit_fraction", fmt::format("expected a number in (0, 1], got {}", *f));
       job.vpop.limit_fraction = *f;
     }
-    if (auto e = in->OptionalPositiveNumber("end_tolerance_mm")) job.vpop.end_tolerance_mm = *e;
+    if (auto e = in->OptionalPositiveNumber("end_tolerance_mm")) {
+      // A motion that may end this far from the path's end could skip the path altogether.
+      if (*e > kMaxEndToleranceMm) {
+        in->Fail("end_tolerance_mm", fmt::format("expected a distance up to {:g} mm, got {:g}",
+                                                 kMaxEndToleranceMm, *e));
+      }
+      job.vpop.end_tolerance_mm = *e;
+    }
     if (auto h = in->OptionalInteger("commit_horizon")) {
-      if (*h < 8)
-        in->Fail("commit_horizon", fmt::format("expected at least 8 periods, got {}", *h));
+      if (*h < 8 || *h > kMaxCommitHorizon) {
+        in->Fail("commit_horizon",
+                 fmt::format("expected 8 to {} periods (2^30), got {}", kMaxCommitHorizon, *h));
+      }
       job.vpop.commit_horizon = static_cast<std::size_t>(*h);
     }
     if (auto a = in->OptionalPositiveNumber("arc_length_tolerance_mm")) {
@@ -454,8 +535,58 @@ Job ParseJob(std::string_view text, const std::string& source_name) {
   return ReadJob(root);
 }
 
+void CheckPeriod(const Job& job, const Machine& machine) {
+  const double dt = job.vpop.period_s, f = job.vpop.limit_fraction;
+  static constexpr const char* kWhat[] = {"velocity", "acceleration", "jerk"};
+  for (const Axis& a : machine.Axes()) {
+    const std::array<double, 3> at = interp::ShortestPeriods(a, job.vpop);
+    const auto k = static_cast<std::size_t>(std::max_element(at.begin(), at.end()) - at.begin());
+    if (!(at[k] > dt * (1.0 + 1e-9))) continue;
+    const double limit = std::array{a.vmax, a.amax, a.jmax}[k];
+    const std::string unit = fmt::format("{}/s{}", a.rotary ? "rad" : "mm",
+                                         k == 0   ? ""
+                                         : k == 1 ? "^2"
+                                                  : "^3");
+    const std::string why = fmt::format(
+        "rounding the written positions of axis {} (near {:g} {}) would eat more than 0.1 % of "
+        "its {} limit ({:g} {}{})",
+        a.name, interp::PositionScale(a, job.vpop), a.rotary ? "rad" : "mm", kWhat[k], limit, unit,
+        f < 1.0 ? fmt::format(" times limit_fraction {:g}", f) : "");
+    interp::VpopOptions whole = job.vpop;
+    whole.limit_fraction = 1.0;
+    const std::array<double, 3> full = interp::ShortestPeriods(a, whole);
+    if (f < 1.0 && *std::max_element(full.begin(), full.end()) <= dt) {
+      // limit_fraction scales every guard term by 1/f, 1/f and 1/f: the least f that fits.
+      double least = 0.0;
+      for (std::size_t i = 0; i < at.size(); ++i) {
+        least = std::max(least, f * std::pow(at[i] / dt, static_cast<double>(i + 1)));
+      }
+      throw Error(
+          "{}: [interpolator] limit_fraction = {:g}: at period_ms = {:g} {}; expected a "
+          "limit_fraction of at least {:.3g}",
+          job.file, f, dt * 1e3, why, least);
+    }
+    if (at[k] <= kMaxPeriodMs * 1e-3) {
+      throw Error(
+          "{}: period_ms = {:g} is shorter than machine '{}' allows: {}; expected "
+          "period_ms of at least {:.3g}",
+          job.file, dt * 1e3, machine.Name(), why, at[k] * 1e3 * (1.0 + 1e-6));
+    }
+    throw Error(
+        "{}: axis {}'s {} limit ({:g} {}) is too small to plan at any period up to {:g} "
+        "ms: {}; check {}",
+        job.machine_file, a.name, kWhat[k], limit, unit, kMaxPeriodMs, why,
+        kinematics::IsLinuxcncIni(job.machine_file)
+            ? fmt::format("[AXIS_{}] and its joint's MAX_{}", a.name,
+                          std::array{"VELOCITY", "ACCELERATION", "JERK"}[k])
+            : fmt::format("key 'axes.{}.{}'", a.name, kWhat[k]));
+  }
+}
+
 std::unique_ptr<Machine> LoadJobMachine(const Job& job) {
-  return kinematics::LoadMachineFile(job.machine_file, job.machine_options);
+  auto machine = kinematics::LoadMachineFile(job.machine_file, job.machine_options);
+  CheckPeriod(job, *machine);
+  return machine;
 }
 
 Job LoadJob(const std::string& path) {
@@ -899,7 +1030,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   r->unreachable = setup.passes.UnreachableText(kSummaryUnreachable);
   r->unreachable_all = setup.passes.UnreachableText(setup.passes.unreachable.size());
   r->unreachable_count = setup.passes.unreachable.size();
-  CheckMotionBound(job, r->path_length_mm);
+  CheckRunBound(job, r->path_length_mm);
   meter.Phase("checking travel");
   CheckPassesInTravel(setup, *r->machine, job.file);
   const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
@@ -926,8 +1057,15 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   }
   ProgressMeter meter(options);
   meter.Phase("reading G-code");
+  GcodeStart start;
+  try {
+    start = GcodeStartOf(job.path.gcode, *r->machine);
+  } catch (const Error& e) {
+    throw Error("{}: [path] {}", job.file, e.what());
+  }
   const GcodeProgram program =
-      ReadGcode(job.path.gcode_file, job.path.gcode.interpreter, job.path.gcode.tool_table);
+      ReadGcode(job.path.gcode_file, job.path.gcode.interpreter, job.path.gcode.tool_table, start,
+                JobReadOptions(job.path.gcode, job.file));
   r->blocks = static_cast<int>(program.moves.size());
   r->gcode_notes = program.notes;
   meter.Phase("building contours");
@@ -936,7 +1074,7 @@ void RunGcode(const Job& job, const RunOptions& options, RunResult* r) {
   r->rapids = plan.rapids;
   r->corners = plan.corners;
   r->path_length_mm = plan.length_mm;
-  CheckMotionBound(job, plan.length_mm);
+  CheckRunBound(job, plan.length_mm, plan.least_time_s);
   meter.Plan("planning", Lengths(plan.segments));
   interp::ProgramOptions po;
   po.threads = options.threads;
@@ -980,7 +1118,7 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   }
   const auto path = BuildPath(job);
   r.path_length_mm = path->Length().value_or(0.0);
-  CheckMotionBound(job, r.path_length_mm);
+  CheckRunBound(job, r.path_length_mm);
   TableSink sink(*r.machine, job.vpop.period_s);
   const auto start = std::chrono::steady_clock::now();
   meter.Plan("planning", {r.path_length_mm});
@@ -1032,10 +1170,18 @@ RunResult RunJob(const Job& job, const RunOptions& options) {
   return r;
 }
 
+// "1 contour", "2 contours".
+std::string Count(long n, std::string_view what) {
+  return fmt::format("{} {}{}", n, what, n == 1 ? "" : "s");
+}
+
 std::string FormatRunSummary(const Job& job, const RunResult& r) {
-  std::string out =
-      fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name,
-                  InterpolatorName(job.interpolator), r.machine->Name(), r.path_length_mm);
+  // The planner that ran (`--planner` names it so), or the Taylor interpolator.
+  const std::string planner = job.interpolator == InterpolatorKind::kVpop
+                                  ? fmt::format("{} planner", interp::PlannerName(job.vpop.planner))
+                                  : InterpolatorName(job.interpolator);
+  std::string out = fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name, planner,
+                                r.machine->Name(), r.path_length_mm);
   if (job.surface) {
     // A name stands for every face the file gives it: say how many faces that made.
     const std::string how_many =
@@ -1074,9 +1220,9 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
                        r.vpop.evaluations);
   }
   if (!job.surface && job.path.kind == PathSpec::Kind::kGcode) {
-    out +=
-        fmt::format("program          {}: {} moves, {} contours, {} rapids, {} smoothed corners\n",
-                    job.path.gcode_file, r.blocks, r.chains, r.rapids, r.corners);
+    out += fmt::format("program          {}: {}, {}, {}, {}\n", job.path.gcode_file,
+                       Count(r.blocks, "move"), Count(r.chains, "contour"),
+                       Count(r.rapids, "rapid"), Count(r.corners, "smoothed corner"));
     out += fmt::format("interpreter      {}\n", GcodeInterpreterName(job.path.gcode.interpreter));
     if (const auto& tools = job.path.gcode.tool_table) {
       out += fmt::format("tool table       {}: {} tool{}, G43 offsets applied\n", tools->file,
@@ -1142,31 +1288,69 @@ std::string UnfitMessage(const Job& job, const RunResult& r) {
                      r.verify.worst_ratio, r.verify.worst);
 }
 
-void CheckMotionBound(const Job& job, double length_mm) {
-  if (!(length_mm > 0.0)) return;
-  struct Bound {
-    double least_s;  // the least motion time this key allows
-    const char* key;
-    double value;
-  };
-  std::vector<Bound> bounds;
-  // A G-code program's F words rule its feed, not feed_mm_min.
-  if (job.surface || job.path.kind != PathSpec::Kind::kGcode) {
-    bounds.push_back({length_mm / job.vpop.feed_mm_s, "feed_mm_min", job.vpop.feed_mm_s * 60.0});
+namespace {
+
+// The least motion time (s) the job's keys allow a path of `length_mm`, with the key that sets
+// it: the longest of these bounds is the least time of the motion.
+struct LeastTime {
+  double s;
+  std::string key;
+  double value;
+};
+
+std::vector<LeastTime> LeastTimes(const Job& job, double length_mm, double program_least_s) {
+  std::vector<LeastTime> bounds;
+  if (length_mm > 0.0) {
+    // A G-code program's F words rule its feed, not feed_mm_min.
+    if (job.surface || job.path.kind != PathSpec::Kind::kGcode) {
+      bounds.push_back({length_mm / job.vpop.feed_mm_s, "feed_mm_min", job.vpop.feed_mm_s * 60.0});
+    }
+    const double a = job.vpop.tangential_acceleration_mm_s2, j = job.vpop.tangential_jerk_mm_s3;
+    if (std::isfinite(a)) {
+      bounds.push_back({2.0 * std::sqrt(length_mm / a), "[tangential] acceleration_mm_s2", a});
+    }
+    if (std::isfinite(j)) {
+      bounds.push_back({std::cbrt(32.0 * length_mm / j), "[tangential] jerk_mm_s3", j});
+    }
   }
-  const double a = job.vpop.tangential_acceleration_mm_s2, j = job.vpop.tangential_jerk_mm_s3;
-  if (std::isfinite(a)) {
-    bounds.push_back({2.0 * std::sqrt(length_mm / a), "[tangential] acceleration_mm_s2", a});
+  // The Taylor interpolators ramp the feed up and down over accel_time_s each.
+  if (job.interpolator != InterpolatorKind::kVpop) {
+    bounds.push_back(
+        {2.0 * job.taylor.accel_time_s, "[interpolator] accel_time_s", job.taylor.accel_time_s});
   }
-  if (std::isfinite(j)) {
-    bounds.push_back({std::cbrt(32.0 * length_mm / j), "[tangential] jerk_mm_s3", j});
+  if (program_least_s > 0.0) {
+    bounds.push_back({program_least_s, "the program's F words, rapids and dwells", NAN});
   }
-  for (const Bound& b : bounds) {
-    if (b.least_s <= kMaxMotionHours * 3600.0) continue;
+  return bounds;
+}
+
+std::string KeyValue(const LeastTime& b) {
+  return std::isnan(b.value) ? b.key : fmt::format("{} = {:g}", b.key, b.value);
+}
+
+}  // namespace
+
+void CheckMotionBound(const Job& job, double length_mm, double program_least_s) {
+  for (const LeastTime& b : LeastTimes(job, length_mm, program_least_s)) {
+    if (b.s <= kMaxMotionHours * 3600.0) continue;
     throw Error(
-        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {} = {:g}, more than the {:g} h "
-        "a job may take: check {}",
-        job.file, length_mm, b.least_s / 3600.0, b.key, b.value, kMaxMotionHours, b.key);
+        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {}, more than the {:g} h a job may "
+        "take: check {}",
+        job.file, length_mm, b.s / 3600.0, KeyValue(b), kMaxMotionHours, b.key);
+  }
+}
+
+void CheckRunBound(const Job& job, double length_mm, double program_least_s) {
+  CheckMotionBound(job, length_mm, program_least_s);
+  for (const LeastTime& b : LeastTimes(job, length_mm, program_least_s)) {
+    const double rows = b.s / job.vpop.period_s;
+    if (rows <= static_cast<double>(kMaxRunSetpoints)) continue;
+    throw Error(
+        "{}: the path ({:.6g} mm) takes at least {:.3g} h with {}: {:.3g} setpoints at {:g} ms, "
+        "more than the {:g} million `dtis run` holds in memory: check {} and period_ms, or plan "
+        "it in constant memory with `dtis stream JOB --to /dev/null --pace none --record FILE`",
+        job.file, length_mm, b.s / 3600.0, KeyValue(b), rows, job.vpop.period_s * 1e3,
+        static_cast<double>(kMaxRunSetpoints) / 1e6, b.key);
   }
 }
 
@@ -1175,15 +1359,16 @@ void WriteRunOutputs(const Job& job, const RunResult& r, const std::string& setp
   if (!keep_failed && !FitToWrite(job, r)) {
     throw Error("{}: {} not written", UnfitMessage(job, r), setpoints_path);
   }
+  std::optional<AtomicFile> limiters;
   if (!limiters_path.empty()) {
-    AtomicFile out(limiters_path);
-    out.Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
-    // Both files land together or not at all: commit the setpoints first, they matter most.
-    WriteSetpoints(setpoints_path, r.table);
-    out.Commit();
-    return;
+    limiters.emplace(limiters_path);
+    limiters->Write(FormatLimiters(r.table, r.arc_length, r.limiters, job.vpop.period_s));
   }
-  WriteSetpoints(setpoints_path, r.table);
+  SetpointWriter setpoints(setpoints_path, r.table.axes);
+  WriteSetpointRows(r.table, &setpoints);
+  // Both files land together or not at all: the setpoints first, they matter most, unless the
+  // limiter report goes to a device or a FIFO, which cannot be taken back.
+  CommitTogether({&setpoints.Finish(), limiters ? &*limiters : nullptr});
 }
 
 }  // namespace dtis::io

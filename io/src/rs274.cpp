@@ -86,8 +86,8 @@ const char* GcodeInterpreterName(GcodeInterpreter interpreter) {
 }
 
 Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools,
-                         Cancel* cancel)
-    : file_(path) {
+                         Cancel* cancel, const GcodeStart& start, const GcodeReadOptions& options)
+    : file_(path), options_(options) {
   RequireRegularFile(path);
   if (::access(path.c_str(), R_OK) != 0) {
     throw Error("{}: cannot open the G-code file: {}", path, std::strerror(errno));
@@ -110,9 +110,25 @@ Rs274Reader::Rs274Reader(const std::string& path, std::shared_ptr<const ToolTabl
   // The interpreter's own chatter (missing parameter file, Python) is not the program's.
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  // dtis-rs274 PROGRAM [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]: the table as read and checked
-  // here.
-  std::vector<std::string> args = {program, path};
+  // dtis-rs274 PROGRAM -s X,Y,Z,A,B,C [-p N=V,...] [-n MAX_BLOCKS] [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,
+  // W,D ...]: where the machine is, the parameters, the block budget, and the table as read and
+  // checked here.
+  std::vector<std::string> args = {
+      program, path, "-s",
+      fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", start.tip.x(), start.tip.y(),
+                  start.tip.z(), start.rotary[0], start.rotary[1], start.rotary[2])};
+  if (options.max_blocks > 0) {
+    args.push_back("-n");
+    args.push_back(std::to_string(options.max_blocks));
+  }
+  if (!start.parameters.empty()) {
+    std::string list;
+    for (const auto& [number, value] : start.parameters) {
+      list += fmt::format("{}{}={:.17g}", list.empty() ? "" : ",", number, value);
+    }
+    args.push_back("-p");
+    args.push_back(list);
+  }
   if (tools) {
     args.push_back("-t");
     for (const ToolEntry& t : tools->tools) {
@@ -269,6 +285,11 @@ std::optional<GcodeMove> Rs274Reader::Next() {
     switch (kind) {
       case 'E':
         Fail(static_cast<int>(line), std::string(f.Rest()));
+      case 'B': {  // the interpreter ran max_blocks blocks and stopped before this one
+        ended_ = true;
+        Reap();
+        throw Error("{}", TooManyBlocks(file_, line, options_));
+      }
       case 'I':
         Note(std::string(f.Rest()));
         continue;

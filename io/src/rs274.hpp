@@ -23,14 +23,20 @@ namespace dtis::io {
 // put it; empty when none is found.
 std::string Rs274Program();
 
+// "<file>:<line>: the program runs more than N blocks ...; <remedy>"
+// (GcodeReadOptions::max_blocks).
+std::string TooManyBlocks(const std::string& file, long line, const GcodeReadOptions& options);
+
 class Rs274Reader {
  public:
   // Starts the interpreter on the file at `path`, with the tool table `tools` (none: every tool
-  // number exists, without offsets). Throws dtis::Error when the file cannot be read or
-  // dtis-rs274 cannot be started. `cancel` (which must outlive the reader), once requested, kills
-  // the interpreter: Next() then throws.
+  // number exists, without offsets), from where `start` says the machine is and with its
+  // parameters (the work offsets). Throws dtis::Error when the file cannot be read or dtis-rs274
+  // cannot be started. `cancel` (which must outlive the reader), once requested, kills the
+  // interpreter: Next() then throws. The interpreter executes at most options.max_blocks blocks.
   explicit Rs274Reader(const std::string& path, std::shared_ptr<const ToolTable> tools = nullptr,
-                       Cancel* cancel = nullptr);
+                       Cancel* cancel = nullptr, const GcodeStart& start = {},
+                       const GcodeReadOptions& options = {});
   // Reads records already written (`records` must outlive the reader); `name` names the program.
   Rs274Reader(std::string_view records, const std::string& name);
   ~Rs274Reader();  // stops the interpreter if it is still running
@@ -57,6 +63,7 @@ class Rs274Reader {
   bool NextRecord();
 
   std::string file_;
+  GcodeReadOptions options_;
   pid_t pid_ = -1;
   std::FILE* out_ = nullptr;
   Cancel::Hook kill_on_cancel_;           // reset before the interpreter is reaped

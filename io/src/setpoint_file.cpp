@@ -186,13 +186,17 @@ std::vector<interp::LimiterId> ReadLimiters(const std::string& path,
   return ParseLimiters(*text, path, axes);
 }
 
-void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {
-  SetpointWriter out(path, table.axes);
+void WriteSetpointRows(const interp::SetpointTable& table, SetpointWriter* out) {
   std::vector<double> row(table.axes.size());
   for (std::size_t r = 0; r < table.Rows(); ++r) {
     for (std::size_t i = 0; i < row.size(); ++i) row[i] = table.columns[i][r];
-    out.Row(table.t[r], row.data());
+    out->Row(table.t[r], row.data());
   }
+}
+
+void WriteSetpoints(const std::string& path, const interp::SetpointTable& table) {
+  SetpointWriter out(path, table.axes);
+  WriteSetpointRows(table, &out);
   out.Commit();
 }
 
@@ -214,11 +218,13 @@ void SetpointWriter::Row(double t, const double* values) {
   }
 }
 
-void SetpointWriter::Commit() {
+AtomicFile& SetpointWriter::Finish() {
   file_.Write(buffer_);
   buffer_.clear();
-  file_.Commit();
+  return file_;
 }
+
+void SetpointWriter::Commit() { Finish().Commit(); }
 
 std::vector<std::string> AxisNames(const Machine& machine) {
   std::vector<std::string> names;

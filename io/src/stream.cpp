@@ -181,6 +181,12 @@ class GcodeProducer {
       : file_(job.path.gcode_file) {
     const GcodeInterpreter which = job.path.gcode.interpreter;
     const std::shared_ptr<const ToolTable>& tools = job.path.gcode.tool_table;
+    GcodeStart start;
+    try {
+      start = GcodeStartOf(job.path.gcode, machine);
+    } catch (const Error& e) {
+      throw Error("{}: [path] {}", job.file, e.what());
+    }
     // A read that fails because it was cancelled says so.
     const auto checked = [cancel](auto&& read) {
       try {
@@ -194,7 +200,7 @@ class GcodeProducer {
     // In the order `dtis run` finds them: bad blocks, rotary words the machine lacks, corners.
     std::array<bool, 3> uses_rotary{};
     checked([&] {
-      GcodeReader blocks(file_, which, tools, cancel);
+      GcodeReader blocks(file_, which, tools, cancel, start);
       ProgramDuration duration(file_, RapidFeed(job.path.gcode, machine));
       while (const auto m = blocks.Next()) {
         duration.Add(*m);
@@ -213,7 +219,7 @@ class GcodeProducer {
     // Which long chains turn the tool: they are smoothed as 5-axis chains from their first move.
     std::vector<bool> five_axis;
     checked([&] {
-      GcodeReader reader(file_, which, tools, cancel);
+      GcodeReader reader(file_, which, tools, cancel, start);
       const auto scan = build(reader, cancel);
       scan->ScanOnly();
       while (const auto s = scan->Next()) {
@@ -221,7 +227,7 @@ class GcodeProducer {
       }
     });
     checked([&] {
-      GcodeReader reader(file_, which, tools, cancel);
+      GcodeReader reader(file_, which, tools, cancel, start);
       const auto all = build(reader, cancel);
       all->SetWindowedFiveAxis(five_axis);
       while (const auto s = all->Next()) {
@@ -229,7 +235,7 @@ class GcodeProducer {
       }
     });
     // What streams: read when the stream gets there, after `cancel` may be gone.
-    reader_ = std::make_unique<GcodeReader>(file_, which, tools);
+    reader_ = std::make_unique<GcodeReader>(file_, which, tools, nullptr, start);
     segments_ = build(*reader_, nullptr);
     segments_->SetWindowedFiveAxis(std::move(five_axis));
   }
@@ -305,7 +311,10 @@ std::unique_ptr<SegmentSource> JobSegments(const Job& job, const Machine& machin
   if (job.surface) return std::make_unique<SurfaceSegments>(job, machine, from, cancel);
   ListSegments::Producer next;
   if (job.path.kind == PathSpec::Kind::kGcode) {
-    next = [producer = std::make_shared<GcodeProducer>(job, machine, cancel)] {
+    // A program starts where the machine is, as LinuxCNC runs it: `from`, else the job's start.
+    Job started = job;
+    if (from) started.path.gcode.from = GcodeFrom(*from, machine);
+    next = [producer = std::make_shared<GcodeProducer>(started, machine, cancel)] {
       return (*producer)();
     };
   } else {

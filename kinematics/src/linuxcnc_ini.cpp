@@ -93,6 +93,19 @@ class IniFile {
         const auto close = line.find(']');
         if (close == std::string::npos) throw Error("{}:{}: expected [SECTION]", name, first);
         section_ = Trim(std::string_view(line).substr(1, close - 1));
+        // LinuxCNC reads a key from the first of two sections of one name: a second [AXIS_X]
+        // would be ignored, its limits unseen. The sections dtis reads appear once.
+        const bool read = section_ == "KINS" || section_ == "TRAJ" ||
+                          section_.rfind("JOINT_", 0) == 0 || section_.rfind("AXIS_", 0) == 0;
+        for (const auto& [seen, where] : sections_) {
+          if (read && seen == section_) {
+            throw Error(
+                "{}:{}: [{}] appears a second time (first at {}); LinuxCNC reads only the "
+                "first: expected each section once",
+                name, first, section_, where);
+          }
+        }
+        sections_.emplace_back(section_, fmt::format("{}:{}", name, first));
         continue;
       }
       const auto eq = line.find('=');
@@ -104,6 +117,7 @@ class IniFile {
 
   std::vector<Entry> entries_;
   std::string section_;
+  std::vector<std::pair<std::string, std::string>> sections_;  // name, where it began
 };
 
 // The pins HAL commands leave set: setp PIN VALUE, PIN = VALUE, sets SIGNAL VALUE with the
@@ -227,6 +241,15 @@ class IniMachineReader {
                                coordinates));
       }
       d.axes.push_back(ReadAxis(c, static_cast<int>(position), module == &kModules[0]));
+    }
+    if (const auto* joints = ini_.Find("KINS", "JOINTS")) {
+      // LinuxCNC's motion controller has at most 16 joints (EMCMOT_MAX_JOINTS).
+      const auto n = ParseNumber(joints->value);
+      if (!n || *n != std::floor(*n) || *n < 1 || *n > 16) {
+        Fail(*joints, fmt::format("expected a whole number of joints from 1 to 16 (LinuxCNC's "
+                                  "most), got '{}'",
+                                  joints->value));
+      }
     }
     if (d.kinematics != Kinematics::kXyz) ReadPivots(module_name, &d);
     return d;

@@ -166,6 +166,14 @@ std::unique_ptr<Machine> ParseMachine(std::string_view text, const std::string& 
 
 MachineDescription ReadMachineDescription(const std::string& path,
                                           const MachineLoadOptions& options) {
+  if (const auto t = options.jerk_time_s;
+      t && !(*t >= MachineLoadOptions::kMinJerkTimeS && *t <= MachineLoadOptions::kMaxJerkTimeS)) {
+    throw Error(
+        "{}: jerk time (machine_jerk_time_ms or --jerk-time-ms) {:g} ms: expected a time from "
+        "{:g} to {:g} ms (each axis' jerk is its acceleration over it)",
+        path, *t * 1e3, MachineLoadOptions::kMinJerkTimeS * 1e3,
+        MachineLoadOptions::kMaxJerkTimeS * 1e3);
+  }
   if (IsLinuxcncIni(path)) {
     const auto text = ReadFileText(path);
     if (!text) throw Error("{}: cannot open the LinuxCNC INI file", path);

@@ -223,6 +223,33 @@ class Builder {
                      : fmt::format("[{:.6g}, {:.6g}] in {}", lo_, hi_, spec_.along_u ? "v" : "u");
   }
 
+  // How many lines `step` apart (in the lines' own unit) cover the face or the range: at most
+  // StrategySpec::kMaxLines.
+  void CheckLineCount(double stepover, double step) const {
+    double count = 0.0;
+    if (spec_.range) {
+      const auto [first, last] = *spec_.range;
+      count = std::floor((last - first) / step) + 1.0;
+    } else if (IsGuide()) {
+      count = std::floor(hi_ / step) - std::ceil(lo_ / step) + 1.0;
+    } else {
+      count = std::ceil((hi_ - lo_) / step);
+    }
+    if (count <= static_cast<double>(StrategySpec::kMaxLines)) return;
+    const bool range = spec_.range.has_value();
+    const std::string& key = range ? spec_.range_key : spec_.stepover_key;
+    throw Error(
+        "{}: {:.3g} strategy lines, {:.6g} mm apart across {}, more than the {} a face is traced "
+        "with ({}); expected {}",
+        key.empty() ? (range ? "range" : "stepover_mm") : key, count, stepover,
+        range ? fmt::format("the range [{:g}, {:g}]{}", (*spec_.range)[0], (*spec_.range)[1],
+                            IsPlane() ? " mm" : "")
+              : ExtentText(),
+        StrategySpec::kMaxLines, face_.Where(),
+        range ? "a range across the face (it spans " + ExtentText() + ") or a larger stepover"
+              : "a larger stepover_mm (or scallop_mm)");
+  }
+
   std::vector<PassConstraint> Lines(double stepover) {
     PassConstraint base;
     base.normal = spec_.plane_normal;
@@ -277,6 +304,7 @@ class Builder {
       if (!(base.iso_scale > 0.0)) throw Error("{}: the face is degenerate", face_.Where());
       step = stepover / base.iso_scale;
     }
+    CheckLineCount(stepover, step);
     std::vector<double> values;
     if (spec_.range) {
       const auto [first, last] = *spec_.range;

@@ -4,9 +4,16 @@
 // which is GPL-2: it is a separate program so that the dtis library keeps its own licence, and so
 // that an interpreter failure cannot take the planner (or a machine it feeds) down with it.
 //
-//   dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
+//   dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...] [-n MAX_BLOCKS]
+//              [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,DIAMETER ...]
 //
-// The arguments after -t are a tool table (dtis reads and checks the user's file, in mm
+// With -n, the interpreter executes at most MAX_BLOCKS blocks (each repetition of a loop and each
+// block of a called subroutine counted), so that a loop that never ends ends here.
+//
+// -s: where the machine is as the program starts (mm and degrees, the machine frame; default the
+// origin). -p: the numbered parameters the interpreter starts with, as LinuxCNC's parameter file
+// gives them (the work offsets of G54 … G59.3 and the one in force, G92, G28/G30). The arguments
+// after -t are a tool table (dtis reads and checks the user's file, in mm
 // and degrees, io/src/tool_table.cpp); with one, G43/G43.2/G49 offsets move the controlled point
 // as LinuxCNC's canon layer moves it, added to every point written. Without one, every tool number
 // exists with no offsets, and G43 is noted: dtis plans the programmed tip.
@@ -28,12 +35,14 @@
 //   D <line> seconds                         dwell (G4)
 //   I <line> what                            a call that moves nothing (spindle, coolant, tool)
 //   E <line> message                         the interpreter's error; the last record
+//   B <line>                                 the block after MAX_BLOCKS executed (-n); the last record
 //   X                                        the program's end; the last record
 // Exit status: 0 after X, 1 after E, 2 on bad usage.
 #include <unistd.h>
 
 #include <array>
 #include <canon.hh>
+#include <cctype>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -42,6 +51,7 @@
 #include <interp_base.hh>
 #include <interp_return.hh>
 #include <string>
+#include <utility>
 #include <vector>
 
 // The tool table the interpreter looks tools up in (G43 H, M6 T). LinuxCNC's libtooldata keeps it
@@ -123,8 +133,33 @@ struct Canon {
   double spindle_speed = 0.0;
   CANON_DIRECTION spindle = CANON_STOPPED;
   int flood = 0, mist = 0;
+  bool tool_offset_noted = false;  // a G43 was noted and no G49 since
+  bool pallet_shuttle = false;     // asked, and neither the program's end nor its stop yet
 };
 Canon canon;
+InterpBase* interp = nullptr;  // the interpreter running the program
+
+// Whether the block being executed writes G49: the interpreter's canon call is the same for G43
+// of a tool without offsets and for G49, so the block tells them apart (comments left out).
+bool BlockCancelsToolOffset() {
+  char text[1024] = {};
+  if (!interp || !interp->line_text(text, sizeof text)) return false;
+  std::string words;
+  int depth = 0;
+  for (const char* p = text; *p && *p != ';'; ++p) {
+    if (*p == '(') ++depth;
+    if (depth == 0 && *p != ' ' && *p != '\t') {
+      words += static_cast<char>(std::toupper(static_cast<unsigned char>(*p)));
+    }
+    if (*p == ')' && depth > 0) --depth;
+  }
+  for (std::size_t at = words.find("G49"); at != std::string::npos;
+       at = words.find("G49", at + 1)) {
+    const char next = at + 3 < words.size() ? words[at + 3] : '\0';
+    if (!std::isdigit(static_cast<unsigned char>(next)) && next != '.') return true;
+  }
+  return false;
+}
 
 double Scale(std::size_t k) { return kLinear[k] ? canon.units : 1.0; }
 
@@ -295,12 +330,19 @@ void USE_TOOL_LENGTH_OFFSET(EmcPose offset) {
   // In program units; kept in mm, as a later G20/G21 does not change the offset in force.
   canon.tool = ToPose(offset);
   for (std::size_t k = 0; k < 9; ++k) canon.tool[k] *= Scale(k);
+  if (BlockCancelsToolOffset()) {
+    // A G49 with no offset in force (as programs begin, to be safe) changes nothing.
+    if (canon.tool_offset_noted) Note(current_line, "tool length offset cancelled (G49)");
+    canon.tool_offset_noted = false;
+    return;
+  }
+  canon.tool_offset_noted = true;
   if (!tool_table_given) {
-    Note(current_line, "tool length offset (G43/G49): the machine applies it, dtis plans the tip");
+    Note(current_line, "tool length offset (G43): the machine applies it, dtis plans the tip");
     return;
   }
   char what[160];
-  std::snprintf(what, sizeof what, "tool length offset (G43/G49) applied: X %g Y %g Z %g mm",
+  std::snprintf(what, sizeof what, "tool length offset (G43) applied: X %g Y %g Z %g mm",
                 canon.tool[0], canon.tool[1], canon.tool[2]);
   Note(current_line, what);
 }
@@ -363,7 +405,9 @@ void MIST_ON() {
   canon.mist = 1;
   Note(current_line, "coolant (M7)");
 }
-void PALLET_SHUTTLE() { Note(current_line, "pallet shuttle (M30, M60)"); }
+// M30 shuttles the pallet, then ends the program; M60 shuttles it, then stops. Only M60's is
+// noted: M30 is the program's end.
+void PALLET_SHUTTLE() { canon.pallet_shuttle = true; }
 void TURN_PROBE_ON() {}
 void TURN_PROBE_OFF() {}
 int WAIT(int, int, int, double) { return 0; }
@@ -374,8 +418,12 @@ void SET_MOTION_OUTPUT_BIT(int) {}
 void CLEAR_MOTION_OUTPUT_BIT(int) {}
 void SET_MOTION_OUTPUT_VALUE(int, double) {}
 void OPTIONAL_PROGRAM_STOP() { Note(current_line, "optional stop (M1): not taken"); }
-void PROGRAM_STOP() { Note(current_line, "program stop (M0): not taken"); }
-void PROGRAM_END() {}
+void PROGRAM_STOP() {
+  Note(current_line, std::exchange(canon.pallet_shuttle, false)
+                         ? "pallet shuttle and program stop (M60): not taken"
+                         : "program stop (M0): not taken");
+}
+void PROGRAM_END() { canon.pallet_shuttle = false; }
 void FINISH() {}
 void ON_RESET() {}
 void INIT_CANON() {}
@@ -493,28 +541,70 @@ bool ReadTool(const char* text, CANON_TOOL_TABLE* entry) {
 }
 
 int main(int argc, char** argv) {
+  constexpr const char* kUsage =
+      "usage: dtis-rs274 PROGRAM.ngc [-s X,Y,Z,A,B,C] [-p NUMBER=VALUE,...] [-n MAX_BLOCKS] "
+      "[-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n";
   if (argc < 2) {
-    std::fprintf(stderr,
-                 "usage: dtis-rs274 PROGRAM.ngc [-t TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D ...]\n");
+    std::fputs(kUsage, stderr);
     return 2;
   }
-  tool_table_given = argc > 2 && std::strcmp(argv[2], "-t") == 0;
-  for (int i = tool_table_given ? 3 : argc; i < argc; ++i) {
-    CANON_TOOL_TABLE entry;
-    if (!ReadTool(argv[i], &entry)) {
-      std::fprintf(stderr, "dtis-rs274: '%s' is not TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D\n", argv[i]);
+  std::string parameters;  // the parameter file's lines
+  // -n: the most blocks the interpreter executes (loops and calls counted), then "B line".
+  long max_blocks = 0;
+  for (int i = 2; i < argc; ++i) {
+    if (std::strcmp(argv[i], "-n") == 0 && i + 1 < argc) {
+      char* end = nullptr;
+      max_blocks = std::strtol(argv[++i], &end, 10);
+      if (end == argv[i] || *end != '\0' || max_blocks < 1) {
+        std::fprintf(stderr, "dtis-rs274: -n '%s' is not a number of blocks\n", argv[i]);
+        return 2;
+      }
+    } else if (std::strcmp(argv[i], "-t") == 0) {
+      tool_table_given = true;
+      for (++i; i < argc; ++i) {
+        CANON_TOOL_TABLE entry;
+        if (!ReadTool(argv[i], &entry)) {
+          std::fprintf(stderr, "dtis-rs274: '%s' is not TOOL=POCKET,X,Y,Z,A,B,C,U,V,W,D\n",
+                       argv[i]);
+          return 2;
+        }
+        tools.push_back(entry);
+      }
+    } else if (std::strcmp(argv[i], "-s") == 0 && i + 1 < argc) {
+      double v[6];
+      int used = 0;
+      if (std::sscanf(argv[++i], "%lf,%lf,%lf,%lf,%lf,%lf%n", &v[0], &v[1], &v[2], &v[3], &v[4],
+                      &v[5], &used) != 6 ||
+          argv[i][used] != '\0') {
+        std::fprintf(stderr, "dtis-rs274: '%s' is not X,Y,Z,A,B,C\n", argv[i]);
+        return 2;
+      }
+      for (std::size_t k = 0; k < 6; ++k) canon.position[k] = v[k];
+    } else if (std::strcmp(argv[i], "-p") == 0 && i + 1 < argc) {
+      // NUMBER=VALUE,... in increasing numbers, as the interpreter wants its file.
+      for (const char* p = argv[++i]; *p;) {
+        int number = 0, used = 0;
+        double value = 0.0;
+        if (std::sscanf(p, "%d=%lf%n", &number, &value, &used) != 2 ||
+            (p[used] != ',' && p[used] != '\0')) {
+          std::fprintf(stderr, "dtis-rs274: '%s' is not NUMBER=VALUE,...\n", argv[i]);
+          return 2;
+        }
+        char line[64];
+        std::snprintf(line, sizeof line, "%d\t%.17g\n", number, value);
+        parameters += line;
+        p += used;
+        if (*p == ',') ++p;
+      }
+    } else {
+      std::fprintf(stderr, "dtis-rs274: unexpected '%s'\n%s", argv[i], kUsage);
       return 2;
     }
-    tools.push_back(entry);
-  }
-  if (argc > 2 && !tool_table_given) {
-    std::fprintf(stderr, "dtis-rs274: expected -t before the tool table, got '%s'\n", argv[2]);
-    return 2;
   }
   // The interpreter reads the INI a LinuxCNC session names in the environment (its subroutine
   // path, remaps, Python plugins, log file): a program must read the same wherever dtis runs.
   ::unsetenv("INI_FILE_NAME");
-  InterpBase* interp = makeInterp();
+  interp = makeInterp();
   const auto fail = [&](int status) -> int {
     char text[512] = {};
     interp->error_text(status, text, sizeof text);
@@ -533,9 +623,12 @@ int main(int argc, char** argv) {
     return 1;
   }
   parameter_file = scratch + "/rs274ngc.var";
-  if (std::FILE* f = std::fopen(parameter_file.c_str(), "w")) std::fclose(f);
+  if (std::FILE* f = std::fopen(parameter_file.c_str(), "w")) {
+    std::fputs(parameters.c_str(), f);
+    std::fclose(f);
+  }
   int status = interp->init();
-  // Read (empty) and written back at init; the program's parameters are its own and not kept.
+  // Read and written back at init; the program's parameters are its own and not kept.
   std::remove(parameter_file.c_str());
   std::remove((parameter_file + ".bak").c_str());
   ::rmdir(scratch.c_str());
@@ -554,11 +647,16 @@ int main(int argc, char** argv) {
   }
   status = interp->open(program.c_str());
   if (status > INTERP_MIN_ERROR) return fail(status);
-  for (;;) {
+  for (long blocks = 1;; ++blocks) {
     status = interp->read();
     if (status == INTERP_ENDFILE) break;
     if (status > INTERP_MIN_ERROR) return fail(status);
     current_line = interp->sequence_number();
+    if (max_blocks > 0 && blocks > max_blocks) {  // the first block past them, not executed
+      std::printf("B %d\n", current_line);
+      std::fflush(stdout);
+      std::_Exit(1);
+    }
     status = interp->execute();
     if (status == INTERP_EXIT) break;
     if (status > INTERP_MIN_ERROR) return fail(status);

@@ -11,7 +11,9 @@ namespace dtis {
 
 // Input files are regular files: a directory, a device (/dev/zero), a FIFO or a socket given as
 // one is an error naming it, never read (a device may never end, a FIFO may block forever).
-// Throws dtis::Error; a path that does not exist passes (the reader says it cannot open it).
+// Throws dtis::Error, also for a path that cannot be followed (a loop of symbolic links: "cannot
+// open: too many levels of symbolic links"); a path that does not exist passes (the reader says
+// it cannot open it).
 void RequireRegularFile(const std::string& path);
 
 // Text inputs are read whole: larger than this (about 18 hours of 5-axis setpoints at 1 ms) they

@@ -93,6 +93,18 @@ struct VpopOptions {
   bool IsValid(std::string* why) const;
 };
 
+// Rounding guard: writing positions (and degrees) and differencing them again moves a jerk by
+// about 8 eps |q| / dt^3; the planner plans that much below each limit so the verifier never
+// reads > 1. PositionScale: the |q| it is sized for (options.position_scale, else the axis'
+// travel, 10 turns for a continuous rotary axis); RoundingGuard: the position error, 64 eps
+// (|q| + 1).
+double PositionScale(const Axis& axis, const VpopOptions& options);
+double RoundingGuard(const Axis& axis, const VpopOptions& options);
+// The shortest periods (s) at which the guard takes at most 0.1 % of the axis' velocity,
+// acceleration and jerk limit, each times options.limit_fraction: the planner refuses a period
+// shorter than the longest of the three (dtis::Error "period ... is too short for axis ...").
+std::array<double, 3> ShortestPeriods(const Axis& axis, const VpopOptions& options);
+
 // Which constraint decided a step.
 enum class Limiter : std::uint8_t {
   kStart,

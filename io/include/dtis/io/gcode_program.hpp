@@ -5,14 +5,16 @@
 //
 // Coordinates: X Y Z are the tool tip in the workpiece frame and the rotary words A B C are the
 // machine's rotary axes, which set the tool axis through the machine's forward kinematics (TCP
-// programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts at the
-// end of its first move (the positioning move). A chain ends, and the machine comes to rest,
+// programming, as LinuxCNC's TCP kinematics or Siemens TRAORI read it). The program starts where
+// the machine is (GcodeOptions::from, by default the origin), as LinuxCNC runs it: its first move
+// is planned from there. A chain ends, and the machine comes to rest,
 // between rapids and feed moves, at a change of feed or of G64 tolerance, after every block under
 // G61 or G61.1, at a dwell, a junction with an arc that is not tangent, or a reversal.
 #pragma once
 
 #include <array>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -47,7 +49,34 @@ struct GcodeOptions {
   // and dropped behind the planner (geometry::G1Path::Window), so that memory does not grow with
   // it; 0: every chain whole. BuildGcodePlan (dtis run) holds every chain whole.
   std::size_t window_blocks = 4096;
+  // Where the machine is as the program starts, in the program's frame (as LinuxCNC's display
+  // shows it): the tip X Y Z (mm), then the machine's rotary axes (degrees), or X Y Z alone (rotary
+  // axes at 0); empty: the origin, where LinuxCNC's sim configurations home. The first move is
+  // planned from there.
+  std::vector<double> from;
+  // Instead: the program starts at the end of its first move, which is not planned (`dtis
+  // compare`'s exports, whose first move goes to the first pass, where the exact path starts).
+  bool start_at_first_move = false;
+  // LinuxCNC's numbered parameters the program starts with (GcodeStart::parameters): a parameter
+  // file's, then the job's work offsets.
+  std::map<int, double> parameters;
+  // dtis run holds the whole program, about 1 KB a block: it reads at most this many blocks
+  // (GcodeReadOptions::max_blocks, each repetition of a loop counted; the job's [path]
+  // max_blocks); 0: no limit.
+  long max_blocks = kDefaultMaxBlocks;
+  static constexpr long kDefaultMaxBlocks = 200'000;
 };
+
+// `options`' start on `machine`: where its tip is and its rotary words, and the parameters.
+// Throws dtis::Error "from: ..." when `from` has neither 3 values nor one per axis of the machine.
+GcodeStart GcodeStartOf(const GcodeOptions& options, const Machine& machine);
+// GcodeOptions::from for the machine at axis positions `q` (planner units): its tip through the
+// forward kinematics, and its rotary axes.
+std::vector<double> GcodeFrom(const AxisVector& q, const Machine& machine);
+
+// What `dtis run` reads of a job's program: options.max_blocks, the message naming the key of
+// `job_file` that raises it.
+GcodeReadOptions JobReadOptions(const GcodeOptions& options, const std::string& job_file);
 
 // The machine axis each rotary word (A, B, C) drives, -1 where the machine has none.
 std::array<int, 3> RotaryWordAxes(const Machine& machine);
@@ -77,6 +106,7 @@ struct GcodePlan {
   std::vector<bool> rapid;                       // per segment: rapids, not feed moves
   int chains = 0, rapids = 0, corners = 0;  // chains of feed moves; rapid blocks; corners smoothed
   double length_mm = 0.0;                   // tip path length of the feed moves
+  double least_time_s = 0.0;                // GcodeSegments::LeastTime() of the whole program
 };
 
 // One segment of a program: a chain of feed moves (or of rapids), smoothed, or a lone rapid.
@@ -108,6 +138,11 @@ class GcodeSegments {
   // it left of its chain (nothing, once it was planned or checked to its end).
   std::optional<GcodeSegment> Next();
   int Rapids() const { return rapids_; }  // rapid blocks read so far
+  // The least time the moves read so far can take (s): each move's chord at its feed, rapids at
+  // the rapid feed, and the dwells. Next() throws dtis::Error "<file>:<line>: ..." naming the
+  // block at which it passes the options' max_motion_s (24 h): a feed, a rapid feed or a dwell
+  // mistyped, or a loop that repeats too often.
+  double LeastTime() const { return least_s_; }
 
   // Windowed chains are smoothed as 3- or 5-axis chains before their moves are read: the
   // five_axis flags of a scan of the same program, windowed chains in order.
@@ -128,6 +163,7 @@ class GcodeSegments {
     std::shared_ptr<const geometry::BSplineCurve> nurbs;  // G5.2: the curve, its own chain
   };
   std::optional<Read> ReadMove();
+  void CountLeastTime(const GcodeMove& m, const Read& r);
   bool Joins(const Read& r) const;
   void Open(const Read& r);
   void Append(const Read& r);
@@ -148,6 +184,7 @@ class GcodeSegments {
   double rapid_feed_ = 0.0;
   bool started_ = false, ended_ = false;
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d start_tip_ = Eigen::Vector3d::Zero();
   // The chain being gathered: its moves (only a window's worth in scan mode or once it is
   // windowed), where it starts, its feed, its last move and where that started.
   std::vector<geometry::ChainMove> chain_;
@@ -169,6 +206,7 @@ class GcodeSegments {
   std::size_t windowed_ = 0;  // windowed chains so far
   bool scan_only_ = false;
   int rapids_ = 0, segments_ = 0;
+  double least_s_ = 0.0;
 };
 
 // `base` carries the period and the tangential limits; each segment gets its own feed. Throws

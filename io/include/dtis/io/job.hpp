@@ -103,9 +103,21 @@ struct Job {
 // ended after as long, wherever its feed collapses).
 inline constexpr double kMinPeriodMs = 0.01, kMaxPeriodMs = 100.0;
 inline constexpr double kMaxMotionHours = interp::kMaxMotionS / 3600.0;
+// [interpolator] end_tolerance_mm at most (a motion may end this far from the path's end) and
+// commit_horizon at most (as `--horizon`).
+inline constexpr double kMaxEndToleranceMm = 0.01;
+inline constexpr long kMaxCommitHorizon = 1L << 30;
+// The most setpoints `dtis run` plans (it holds them all; 2.8 h of motion at 1 ms): a longer
+// motion streams (`dtis stream`), in constant memory.
+inline constexpr long kMaxRunSetpoints = 10'000'000;
 
-// The job's machine, read with the job's machine options.
+// The job's machine, read with the job's machine options, and CheckPeriod'ed.
 std::unique_ptr<Machine> LoadJobMachine(const Job& job);
+// The planner plans each axis' limits down by what rounding the written positions costs
+// (interp::ShortestPeriods): throws dtis::Error naming the key to change (period_ms,
+// [interpolator] limit_fraction, or the machine's axis limit) with the shortest period or least
+// fraction that plans, when the job's period is too short for `machine`.
+void CheckPeriod(const Job& job, const Machine& machine);
 
 // Throws dtis::Error naming the file, line and key.
 Job LoadJob(const std::string& path);
@@ -159,10 +171,14 @@ struct RunOptions {
 };
 
 // Throws dtis::Error, naming the job and the key to look at, when a path of `length_mm` cannot be
-// followed in less than kMaxMotionHours at the job's feed (not for G-code: its F words rule) or
+// followed in less than kMaxMotionHours at the job's feed (not for G-code: its F words rule),
 // within its tangential acceleration and jerk (a rest-to-rest move of that length needs at least
-// 2 sqrt(L / A) and (32 L / J)^(1/3)).
-void CheckMotionBound(const Job& job, double length_mm);
+// 2 sqrt(L / A) and (32 L / J)^(1/3)), with a Taylor interpolator's ramps (2 accel_time_s), or
+// in `program_least_s` (a G-code program's GcodePlan::least_time_s).
+void CheckMotionBound(const Job& job, double length_mm, double program_least_s = 0.0);
+// CheckMotionBound, and for `dtis run`, which holds every setpoint (about 300 bytes each), no
+// more than kMaxRunSetpoints setpoints at the job's period.
+void CheckRunBound(const Job& job, double length_mm, double program_least_s = 0.0);
 
 // Loads the machine and the path, plans, and verifies the result with the independent verifier.
 RunResult RunJob(const Job& job, const RunOptions& options = {});

@@ -38,13 +38,18 @@ class SetpointWriter {
  public:
   SetpointWriter(const std::string& path, const std::vector<std::string>& axes);
   void Row(double t, const double* values);  // one value per axis, file units
-  void Commit();
+  void Commit();                             // Finish(), then the file's Commit()
+  // Hands every row to the file and returns it, to commit with others (CommitTogether).
+  AtomicFile& Finish();
 
  private:
   AtomicFile file_;
   std::string buffer_;
   std::size_t axes_;
 };
+
+// Every row of `table` into `out` (not committed).
+void WriteSetpointRows(const interp::SetpointTable& table, SetpointWriter* out);
 
 // The machine's axis names, in order: the columns after `t`.
 std::vector<std::string> AxisNames(const Machine& machine);

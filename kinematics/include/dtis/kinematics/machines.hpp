@@ -125,8 +125,11 @@ std::unique_ptr<Machine> BuildMachine(const MachineDescription& description);
 // path ending in .ini, a LinuxCNC INI file (docs/machines.md). Throws dtis::Error naming the file,
 // line and key.
 struct MachineLoadOptions {
-  // For INI files whose axes have no MAX_JERK: jerk = MAX_ACCELERATION / jerk_time_s (s).
+  // For INI files whose axes have no MAX_JERK: jerk = MAX_ACCELERATION / jerk_time_s (s), from
+  // kMinJerkTimeS to kMaxJerkTimeS (anything else, NaN included, is an error naming the file).
   std::optional<double> jerk_time_s;
+  // 0.1 ms: a jerk ten thousand times the acceleration; 10 s: a ramp longer than any drive's.
+  static constexpr double kMinJerkTimeS = 1e-4, kMaxJerkTimeS = 10.0;
 };
 // A path LoadMachineFile reads as a LinuxCNC INI file (it ends in .ini or .INI).
 bool IsLinuxcncIni(const std::string& path);

@@ -51,6 +51,13 @@ struct StrategySpec {
   // uv. Without it the lines cover the face, half a stepover in from its extremes.
   std::optional<std::array<double, 2>> range;
   int max_passes = 0;  // 0: all
+  // Where stepover_mm (or scallop_mm) and range were given, for the message that refuses more than
+  // kMaxLines lines (e.g. "job.toml:12: key 'strategy.stepover_mm'"); "" : "stepover_mm", "range".
+  std::string stepover_key, range_key;
+  // The most strategy lines one face is traced with (0.01 mm across 100 mm; tracing one takes some
+  // 10 ms): more (a stepover of 1 um, a range of 1e300 mm) is
+  // an error naming stepover_key or range_key, before any line is traced.
+  static constexpr long kMaxLines = 10'000;
   // The box (mm, in the workpiece frame) the tool tip stays in: passes end where the tip reaches
   // a side of it (a part larger than the machine's travel, finished in parts). Unbounded when
   // unset; a side may be infinite.
