@@ -264,6 +264,7 @@ int Run(const RunArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
+    in.unreachable = result.unreachable_all;
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
     if (html->InPlace()) html->Commit();
   }

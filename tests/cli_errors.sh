@@ -482,5 +482,16 @@ bounded_case 1 faces-directory "$work: is a directory, not a file" -- "$dtis" fa
 bounded_case 1 faces-fifo "fifo.toml: is a FIFO, not a file" -- "$dtis" faces "$work/fifo.toml"
 bounded_case 1 faces-device "/dev/zero: is a device, not a file" -- "$dtis" faces /dev/zero
 
+# Surface jobs' set-up: a part placed beyond the machine's travel is refused before any pass is
+# planned (the sample face's passes reach x = 400.25 mm), naming the pass and the axis; a face is
+# chosen among those of one name by "name#N".
+sed 's/^face = 3/face = 1\nrotate_deg = [0, 90, 0]\ntranslate_mm = [336, 0, 0]/; s/^stepover_mm = 2/stepover_mm = 0.5/' "$work/surf.toml" > "$work/travel.toml"
+expect surface-out-of-travel "travel.toml: pass 152: cannot follow the path at $parts/occt_trj8_c2-db-214_single_bspline_face.stp face 1 ('127'), pass 152" -- timeout 10 "$dtis" run "$work/travel.toml" -o "$work/out.csv"
+expect surface-out-of-travel-axis "axis X would have to reach 400.254 mm, 0.254 mm outside its travel [-400, 400] mm (found before planning)" -- timeout 10 "$dtis" run "$work/travel.toml" -o "$work/out.csv"
+expect stream-out-of-travel "travel.toml: pass 152: cannot follow the path at" -- timeout 10 "$dtis" stream "$work/travel.toml" --to "$work/out.txt"
+expect compare-out-of-travel "travel.toml: pass 152: cannot follow the path at" -- timeout 10 "$dtis" compare "$work/travel.toml" --csv "$work/out.csv"
+sed 's/^face = 3/face = "127#2"/' "$work/surf.toml" > "$work/nth.toml"
+expect face-name-nth "nth.toml:5: key 'surface.face': $parts/occt_trj8_c2-db-214_single_bspline_face.stp has 1 face named '127' ('127#1' to '127#1', in the file's order); there is no '127#2'" -- "$dtis" run "$work/nth.toml" -o "$work/out.csv"
+
 echo "$((checks - failures)) passed, $failures failed"
 [ $failures -eq 0 ]

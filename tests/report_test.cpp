@@ -238,8 +238,8 @@ TEST(Progress, ASurfaceJobNamesItsPhasesAndPlansToTheEnd) {
   RunResult r;
   const Heard heard = Listen("samples/jobs/surface_plane_cl_3axis.toml", &r);
   EXPECT_EQ(heard.phases,
-            (std::vector<std::string>{"reading STEP", "tracing passes", "planning passes",
-                                      "planning links", "verifying"}));
+            (std::vector<std::string>{"reading STEP", "tracing passes", "checking travel",
+                                      "planning passes", "planning links", "verifying"}));
   // Each pass' time, to the periods at rest that end it.
   ExpectForwardToTheEnd(heard.reports.at("planning passes"), r.pass_motion_s,
                         4.5 * r.verify.period_s * r.passes);

@@ -40,6 +40,7 @@
 #include <gp_Circ.hxx>
 #include <gp_Pln.hxx>
 #include <gp_Trsf.hxx>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -52,6 +53,8 @@
 #include "dtis/geometry/step_model.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/job.hpp"
+#include "dtis/io/report.hpp"
+#include "dtis/io/stream.hpp"
 #include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
 #include "fixture_shapes.hpp"
@@ -1505,6 +1508,13 @@ TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
   EXPECT_EQ(r.passes, on_left + on_right);
   const std::string summary = io::FormatRunSummary(job, r);
   EXPECT_NE(summary.find("faces 'left', 2"), std::string::npos) << summary;
+  // Both faces of the file are the job's: none besides them is checked, each against the other.
+  EXPECT_EQ(r.checked_faces, 0);
+  EXPECT_EQ(r.job_faces, 2);
+  EXPECT_NE(summary.find("checked          each face's passes out of the job's 1 other face\n"),
+            std::string::npos)
+      << summary;
+  EXPECT_EQ(summary.find("besides the job's"), std::string::npos) << summary;
   const TopoDS_Face whole = WavyRuledFace();
   const auto& c = r.table.columns;
   double closest = INFINITY;
@@ -1602,6 +1612,128 @@ TEST(SurfaceJob, FacesAreGivenByNumberNameOrList) {
                     "face 1 of " + step + " is given twice (as 'left' and 1)");
   test::ExpectError([&] { io::JobFaces(*job("\"top\"").surface, model); },
                     "has no face named 'top'; its named faces: 'left' (1), 'right' (2)");
+}
+
+// Several faces of one name (CAD systems name every face of a body after it): the name selects
+// them all, and the summary says how many; "name#N" selects the N-th of them in the file's order.
+TEST(SurfaceJob, ANameSelectsEveryFaceOfItAndNameNumberOneOfThem) {
+  const Handle(Geom_Surface) wave = BRep_Tool::Surface(WavyRuledFace());
+  const std::string step = WriteNamedFaces(
+      "same_name", {{BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face(), "PartBody"},
+                    {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "PartBody"}});
+  const StepModel model = StepModel::Load(step);
+  ASSERT_EQ(model.FacesNamed("PartBody"), (std::vector<int>{1, 2}));
+  const auto job = [&](const std::string& face) {
+    return WavyFacesJob(step, face, test::Scratch("same_name.toml"));
+  };
+  EXPECT_EQ(io::JobFaces(*job("\"PartBody\"").surface, model), (std::vector<int>{1, 2}));
+  EXPECT_EQ(io::JobFaces(*job("\"PartBody#2\"").surface, model), std::vector<int>{2});
+  EXPECT_EQ(io::JobFaces(*job("[\"PartBody#2\", \"PartBody#1\"]").surface, model),
+            (std::vector<int>{2, 1}));
+  test::ExpectError([&] { io::JobFaces(*job("\"PartBody#3\"").surface, model); },
+                    {"same_name.toml:5: key 'surface.face'", "has 2 faces named 'PartBody'",
+                     "'PartBody#1' to 'PartBody#2'", "there is no 'PartBody#3'"});
+  test::ExpectError([&] { io::JobFaces(*job("\"PartBody#0\"").surface, model); },
+                    "there is no 'PartBody#0'");
+  test::ExpectError([&] { io::JobFaces(*job("[\"PartBody\", \"PartBody#1\"]").surface, model); },
+                    "is given twice (as 'PartBody' and 'PartBody#1')");
+  test::ExpectError([&] { io::JobFaces(*job("\"Body#1\"").surface, model); },
+                    "has no face named 'Body#1'");
+  // A face named "Body#2" is that face; "Body#1" the first named "Body".
+  const std::string hashed = WriteNamedFaces(
+      "hash_name", {{BRepBuilderAPI_MakeFace(wave, 0.0, 0.5, 0.0, 1.0, 1e-7).Face(), "Body#2"},
+                    {BRepBuilderAPI_MakeFace(wave, 0.5, 1.0, 0.0, 1.0, 1e-7).Face(), "Body"}});
+  const StepModel hashed_model = StepModel::Load(hashed);
+  const auto hashed_job = [&](const std::string& face) {
+    return WavyFacesJob(hashed, face, test::Scratch("hash_name.toml"));
+  };
+  EXPECT_EQ(io::JobFaces(*hashed_job("\"Body#2\"").surface, hashed_model), std::vector<int>{1});
+  EXPECT_EQ(io::JobFaces(*hashed_job("\"Body#1\"").surface, hashed_model), std::vector<int>{2});
+
+  const io::Job both = job("\"PartBody\"");
+  io::RunResult r = io::RunJob(both);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  const std::string summary = io::FormatRunSummary(both, r);
+  EXPECT_NE(summary.find("face 'PartBody' (2 faces: a name selects every face of that name"),
+            std::string::npos)
+      << summary;
+  const io::Job one = job("\"PartBody#1\"");
+  r.job_faces = 1;  // as a run of the one face would be
+  EXPECT_EQ(io::FormatRunSummary(one, r).find("a name selects"), std::string::npos);
+}
+
+// A part moved out of the machine's travel is refused before planning, in the planner's words:
+// the wavy face moved 290 mm along +Y leaves Y's travel [-300, 300] some 10 mm into its first
+// pass, which runs along +Y. The check names the face, the pass, the arc length and the axis, as
+// the planner does when it meets the same pose, and it takes a fraction of the time.
+TEST(SurfaceJob, APartOutOfTravelIsRefusedBeforePlanning) {
+  const std::string step = WriteNamedFaces("out_of_travel", {{WavyRuledFace(), "wavy"}});
+  const io::Job job = BallJob(step, "translate_mm = [0, 290, 0]",
+                              "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 7",
+                              test::Scratch("out_of_travel.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  ASSERT_GE(setup.passes.passes.size(), 2u);
+  const auto machine = io::LoadJobMachine(job);
+  std::string checked;
+  try {
+    io::CheckPassesInTravel(setup, *machine, job.file);
+    FAIL() << "the part is out of travel";
+  } catch (const Error& e) {
+    checked = e.what();
+  }
+  for (const char* fragment : {"out_of_travel.toml: pass 1: cannot follow the path at ", "('wavy')",
+                               ", pass 1 (", "arc length ", "axis Y would have to reach ",
+                               "outside its travel [-300, 300] mm", "(found before planning)"}) {
+    EXPECT_NE(checked.find(fragment), std::string::npos) << fragment << "\n" << checked;
+  }
+  // The arc length it names is where the tip's y has passed 300 mm, within a sampling step.
+  const std::size_t at = checked.find("arc length ") + 11;
+  const double s = std::stod(checked.substr(at));
+  const double y0 = setup.passes.passes[0]->StartPose().tip.y();
+  EXPECT_GT(y0 + s, 300.0);
+  EXPECT_LE(y0 + s, 300.0 + io::kTravelCheckStepMm * 1.5);
+  // The planner, given the same passes, fails on the same pass and axis.
+  std::vector<const PathSource*> passes;
+  for (const auto& p : setup.passes.passes) passes.push_back(p.get());
+  test::ExpectError([&] { io::PlanPasses(passes, setup, *machine, {}, job.file); },
+                    {"cannot follow the path at ", "('wavy')", ", pass 1 (",
+                     "axis Y would have to reach ", "outside its travel [-300, 300] mm"});
+  test::ExpectError([&] { io::RunJob(job); },
+                    "out_of_travel.toml: pass 1: cannot follow the path at ");
+  // A stream refuses it before its first segment, as a run does.
+  test::ExpectError(
+      [&] { io::JobSegments(job, *machine); },
+      {"out_of_travel.toml: pass 1: cannot follow the path at ", "(found before planning)"});
+  // In travel, the check passes.
+  const io::Job inside =
+      BallJob(step, "", "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 7",
+              test::Scratch("in_travel.toml"));
+  EXPECT_NO_THROW(
+      io::CheckPassesInTravel(io::SetUpSurface(inside, nullptr), *machine, inside.file));
+}
+
+// A link's corner out of travel: the part raised until the passes fit under Z's top (300 mm) but
+// the height the links traverse at (the clearance above the face) does not.
+TEST(SurfaceJob, ALinkOutOfTravelIsRefusedBeforePlanning) {
+  const std::string step = WriteNamedFaces("link_out_of_travel", {{WavyRuledFace(), "wavy"}});
+  const auto job = [&](double z) {
+    return BallJob(step, fmt::format("translate_mm = [0, 0, {}]", z),
+                   "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 7",
+                   test::Scratch("link_out_of_travel.toml"));
+  };
+  const io::SurfaceSetup at0 = io::SetUpSurface(job(0.0), nullptr);
+  double top = -INFINITY;
+  for (const auto& p : at0.passes.passes) {
+    top = std::max({top, p->StartPose().tip.z(), p->EndPose().tip.z()});
+  }
+  const double z = 300.0 - top - 0.5 * at0.clearance_mm;  // the pass ends fit, the links do not
+  const io::Job raised = job(z);
+  const io::SurfaceSetup setup = io::SetUpSurface(raised, nullptr);
+  const auto machine = io::LoadJobMachine(raised);
+  test::ExpectError([&] { io::CheckPassesInTravel(setup, *machine, raised.file); },
+                    {"link_out_of_travel.toml: link from pass 1 to pass 2: cannot follow it at its "
+                     "corner ",
+                     "axis Z would have to reach ", "(found before planning)"});
 }
 
 // The distance to a tool in closed form: a ball R3 is a sphere about the point 3 mm up its axis, a
@@ -1703,7 +1835,8 @@ TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
   ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
   EXPECT_EQ(r.checked_faces, 1);
   const std::string summary = io::FormatRunSummary(checked, r);
-  EXPECT_NE(summary.find("checked          the tool kept out of 1 other face of the part"),
+  EXPECT_NE(summary.find("checked          the tool kept out of 1 face of the part besides the "
+                         "job's (check_faces)\n"),
             std::string::npos)
       << summary;
   const auto& c = r.table.columns;
@@ -1716,6 +1849,39 @@ TEST(CheckFaces, APassTowardsATallerNeighbourStopsWhereTheToolWouldGoIntoIt) {
   }
   EXPECT_GE(closest, 3.0 - tol);
   EXPECT_LT(closest, 3.0 + 0.01);  // and it came to the wall
+}
+
+// More stretches left out than the summary lists: it says how many more and where to find them
+// all, and the HTML report lists every one.
+TEST(SurfaceJob, TheReportListsEveryUnreachableStretch) {
+  const std::string step = FloorAndWall("many_left_out");
+  const io::Job job = BallJob(step, "face = \"floor\"",
+                              "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 3",
+                              test::Scratch("many_left_out.toml"));
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_GT(r.unreachable_count, io::kSummaryUnreachable);
+  const std::string summary = io::FormatRunSummary(job, r);
+  EXPECT_NE(
+      summary.find(fmt::format("  and {} more\n", r.unreachable_count - io::kSummaryUnreachable)),
+      std::string::npos)
+      << summary;
+  EXPECT_NE(summary.find("`dtis run --report F.html`, lists them all"), std::string::npos)
+      << summary;
+  std::size_t lines = 0;
+  for (std::size_t at = r.unreachable_all.find("\n  line "); at != std::string::npos;
+       at = r.unreachable_all.find("\n  line ", at + 1)) {
+    ++lines;
+  }
+  EXPECT_EQ(lines, r.unreachable_count);
+  EXPECT_EQ(r.unreachable_all.find("more\n"), std::string::npos);
+  io::ReportInput in;
+  in.title = job.name;
+  in.machine = r.machine.get();
+  in.table = &r.table;
+  in.verify = &r.verify;
+  in.unreachable = r.unreachable_all;
+  const std::string html = io::RenderReport(in, "/* plotly */");
+  EXPECT_NE(html.find(nlohmann::json(r.unreachable_all).dump()), std::string::npos);
 }
 
 // Tilted 10 deg towards the wall (tilt_yaw leans the axis towards the feed), the ball's shank

@@ -399,6 +399,7 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   // Each planner plans from a copy of the job and of the passes' options that names it.
   Job planned = job;
   SurfaceSetup setup = SetUpSurface(job);
+  CheckPassesInTravel(setup, *machine, job.file);
   Context c{planned, options, *machine, setup, {}, {}, {}, {}, {}};
   c.run.threads = options.threads;
   CompareResult r;

@@ -755,7 +755,26 @@ std::vector<int> ResolveFaces(const std::vector<FaceRef>& refs, const std::strin
       add(ref.index, ref);
       continue;
     }
-    const std::vector<int> named = model.FacesNamed(ref.name);
+    std::vector<int> named = model.FacesNamed(ref.name);
+    // "name#N": the N-th face of that name, in the file's order (when no face is named so whole).
+    const std::size_t hash = ref.name.rfind('#');
+    if (named.empty() && hash != std::string::npos && hash > 0 && hash + 1 < ref.name.size() &&
+        ref.name.find_first_not_of("0123456789", hash + 1) == std::string::npos) {
+      const std::string base = ref.name.substr(0, hash);
+      const std::vector<int> all_named = model.FacesNamed(base);
+      if (!all_named.empty()) {
+        const std::string digits = ref.name.substr(hash + 1);
+        const std::size_t nth = digits.size() > 9 ? 0 : std::stoul(digits);
+        if (nth < 1 || nth > all_named.size()) {
+          throw Error(
+              "{}: {} has {} face{} named '{}' ('{}#1' to '{}#{}', in the file's order); "
+              "there is no '{}'",
+              key, spec.step_file, all_named.size(), all_named.size() == 1 ? "" : "s", base, base,
+              base, all_named.size(), ref.name);
+        }
+        named = {all_named[nth - 1]};
+      }
+    }
     if (named.empty()) {
       std::vector<std::string> names;
       for (int k = 1; k <= model.FaceCount(); ++k) {
@@ -833,7 +852,8 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
     checks.emplace(all, spec.tool, spec.tool_length_mm, spec.check_tolerance_mm);
   }
   SurfaceSetup setup;
-  setup.checked_faces = static_cast<int>(all.size()) - 1;
+  setup.checked_faces = static_cast<int>(all.size() - placed.size());
+  setup.job_faces = static_cast<int>(placed.size());
   if (phase) phase("tracing passes");
   // Face after face, each with the whole strategy; their passes and stretches left out in turn.
   for (std::size_t k = 0; k < placed.size(); ++k) {
@@ -860,6 +880,59 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
   setup.link_corners = job.compare.corners;
   setup.link_corners.feed_mm_s = setup.link_options.feed_mm_s;
   return setup;
+}
+
+void CheckPassesInTravel(const SurfaceSetup& setup, const Machine& machine,
+                         const std::string& job_file, double step_mm) {
+  const auto out_of_travel = [](const InverseResult& r) {
+    return r.status == InverseStatus::kOutOfTravel || r.status == InverseStatus::kUnreachable;
+  };
+  const auto& passes = setup.passes.passes;
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    const strategies::SurfacePass* pass = passes[k].get();
+    const double length = pass->Length().value_or(0.0);
+    PathState state = pass->Start();
+    AxisVector q, previous;
+    bool have_previous = false;
+    for (double s = 0.0;; s = std::min(s + step_mm, length)) {
+      const PathSample sample = pass->At(state, s);
+      if (sample.status == PathStatus::kLeftDomain || sample.status == PathStatus::kNoConvergence) {
+        break;  // the planner says where and why
+      }
+      state = sample.state;
+      const InverseResult r = machine.Inverse(sample.pose, have_previous ? &previous : nullptr, &q);
+      if (out_of_travel(r)) {
+        throw Error("{}: pass {}: cannot follow the path at {}: {} (found before planning)",
+                    job_file, k + 1, pass->Describe(state), DescribeInverseFailure(machine, r));
+      }
+      if (r.status == InverseStatus::kOk) {
+        previous = q;
+        have_previous = true;
+      }
+      if (s >= length || sample.status == PathStatus::kEnd) break;
+    }
+  }
+  // The links' corners: where each backs off, rises, traverses and comes down.
+  for (std::size_t k = 0; k + 1 < passes.size(); ++k) {
+    const Pose from = passes[k]->EndPose(), to = passes[k + 1]->StartPose();
+    if ((from.tip - to.tip).norm() < 1e-9) continue;
+    const double z = setup.link_heights ? setup.link_heights->TraverseZ(from, to)
+                                        : std::max(from.tip.z(), to.tip.z()) + setup.clearance_mm;
+    const std::vector<Pose> corners = geometry::LinkWaypoints(
+        from, to, z, setup.clearance_mm, passes[k + 1]->RidesOverFromPrevious());
+    for (std::size_t c = 0; c < corners.size(); ++c) {
+      AxisVector q;
+      const InverseResult r = machine.Inverse(corners[c], nullptr, &q);
+      if (out_of_travel(r)) {
+        const Eigen::Vector3d& p = corners[c].tip;
+        throw Error(
+            "{}: link from pass {} to pass {}: cannot follow it at its corner {} of {}, tip "
+            "({:.6g}, {:.6g}, {:.6g}) mm: {} (found before planning)",
+            job_file, k + 1, k + 2, c + 1, corners.size(), p.x(), p.y(), p.z(),
+            DescribeInverseFailure(machine, r));
+      }
+    }
+  }
 }
 
 geometry::FaceMesh MeshJobSurface(const Job& job) {
@@ -953,8 +1026,13 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   r->passes = static_cast<int>(passes.size());
   r->stepover_mm = setup.passes.stepover_mm;
   r->checked_faces = setup.checked_faces;
-  r->unreachable = setup.passes.UnreachableText(8);
+  r->job_faces = setup.job_faces;
+  r->unreachable = setup.passes.UnreachableText(kSummaryUnreachable);
+  r->unreachable_all = setup.passes.UnreachableText(setup.passes.unreachable.size());
+  r->unreachable_count = setup.passes.unreachable.size();
   CheckRunBound(job, r->path_length_mm);
+  meter.Phase("checking travel");
+  CheckPassesInTravel(setup, *r->machine, job.file);
   const PassProgram pp = PlanPasses(passes, setup, *r->machine, options, job.file);
   r->links = pp.links;
   TableSink sink(*r->machine, job.vpop.period_s);
@@ -1105,20 +1183,36 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   std::string out = fmt::format("job {}: {} on machine '{}', path {:.6g} mm\n", job.name, planner,
                                 r.machine->Name(), r.path_length_mm);
   if (job.surface) {
-    out += fmt::format("surface          {} {}, {}, {}, {}\n", job.surface->step_file,
-                       DescribeFaces(*job.surface), job.surface->tool.Describe(),
+    // A name stands for every face the file gives it: say how many faces that made.
+    const std::string how_many =
+        r.job_faces > static_cast<int>(job.surface->faces.size())
+            ? fmt::format(" ({} faces: a name selects every face of that name, 'NAME#N' the N-th)",
+                          r.job_faces)
+            : "";
+    out += fmt::format("surface          {} {}{}, {}, {}, {}\n", job.surface->step_file,
+                       DescribeFaces(*job.surface), how_many, job.surface->tool.Describe(),
                        job.surface->orientation.Describe(),
                        strategies::StrategySpec::KindName(job.surface->strategy.kind));
     out += fmt::format(
         "passes           {} (stepover {:.6g} mm), {} link moves, {:.6f} s on the "
         "passes\n",
         r.passes, r.stepover_mm, r.links, r.pass_motion_s);
+    std::vector<std::string> checked;
     if (r.checked_faces > 0) {
-      out += fmt::format(
-          "checked          the tool kept out of {} other face{} of the part (check_faces)\n",
-          r.checked_faces, r.checked_faces == 1 ? "" : "s");
+      checked.push_back(
+          fmt::format("the tool kept out of {} face{} of the part besides the job's "
+                      "(check_faces)",
+                      r.checked_faces, r.checked_faces == 1 ? "" : "s"));
     }
+    if (r.job_faces > 1) {
+      checked.push_back(fmt::format("each face's passes out of the job's {} other face{}",
+                                    r.job_faces - 1, r.job_faces == 2 ? "" : "s"));
+    }
+    if (!checked.empty()) out += fmt::format("checked          {}\n", fmt::join(checked, "; "));
     if (!r.unreachable.empty()) out += "unreachable      " + r.unreachable;
+    if (r.unreachable_count > kSummaryUnreachable) {
+      out += "                 (an HTML report, `dtis run --report F.html`, lists them all)\n";
+    }
     out += fmt::format("newton           {:.3f} iterations per evaluation ({} evaluations)\n",
                        r.vpop.evaluations ? static_cast<double>(r.vpop.path_iterations) /
                                                 static_cast<double>(r.vpop.evaluations)

@@ -138,6 +138,8 @@ th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
 <h2 id="shown"></h2>
 </div>
 <table id="summary"></table>
+<div id="unreachable-section" hidden><h2>Left out where the tool does not fit</h2>
+<pre id="unreachable"></pre></div>
 <h2 id="path-title">Tool path, coloured by feed</h2><div id="path" class="plot" data-figure="path" style="height:600px"></div>
 <h2>Feed against time, and the constraint that decided each period</h2>
 <div id="feed" class="plot" data-figure="feed" style="height:520px"></div>
@@ -165,6 +167,10 @@ function summary() {
   for (const [k, v] of kv) { const r = row([k, v]); if (k === 'verifier') r.lastChild.className = s.passed ? 'pass' : 'fail'; t.appendChild(r); }
   t.appendChild(row(['axis', '|v| / limit', '|a| / limit', '|j| / limit'], true));
   for (const a of s.axes) t.appendChild(row([a.name, a.v_ratio.toFixed(6), a.a_ratio.toFixed(6), a.j_ratio.toFixed(6)]));
+  if (DATA.unreachable) {
+    document.getElementById('unreachable').textContent = DATA.unreachable;
+    document.getElementById('unreachable-section').hidden = false;
+  }
 }
 function compareSection() {
   const c = DATA.compare;
@@ -357,6 +363,7 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
       {"made", fmt::format("{:%Y-%m-%d %H:%M:%S %z}", fmt::localtime(std::time(nullptr)))});
   data["about"] = std::move(about);
   data["programmed_feed"] = in.programmed_feed_mm_min;
+  data["unreachable"] = in.unreachable;
   ordered_json summary = {{"motion_time_s", verify.motion_time_s},
                           {"setpoints", verify.rows},
                           {"period_s", dt},

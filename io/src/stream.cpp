@@ -264,9 +264,10 @@ class SurfaceSegments final : public SegmentSource {
     for (const auto& pass : setup_.passes.passes) length_mm += pass->Length().value_or(0.0);
     CheckMotionBound(job, length_mm);
     if (cancel != nullptr) cancel->ThrowIfRequested();
+    CheckPassesInTravel(setup_, machine, job.file);
   }
   void StartFrom(const std::optional<AxisVector>& from) override { from_ = from; }
-  std::string Notes() const override { return setup_.passes.UnreachableText(8); }
+  std::string Notes() const override { return setup_.passes.UnreachableText(kSummaryUnreachable); }
   std::optional<StreamSegment> Next(const std::optional<AxisVector>& at) override {
     if (auto link = linker_.Pop()) return link;
     const auto& passes = setup_.passes.passes;

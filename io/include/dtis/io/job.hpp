@@ -142,10 +142,14 @@ struct RunResult {
   int passes = 0;
   int links = 0;
   int checked_faces = 0;  // SurfaceSetup::checked_faces
+  int job_faces = 0;      // SurfaceSetup::job_faces
   double stepover_mm = 0.0;
   double pass_motion_s = 0.0;  // time spent on the passes (links excluded)
-  // What the passes leave out where the tool does not fit (PassList::UnreachableText), or "".
-  std::string unreachable;
+  // What the passes leave out where the tool does not fit (PassList::UnreachableText), or "":
+  // the first kSummaryUnreachable stretches, then how many more; `unreachable_all` lists them all
+  // (for the HTML report).
+  std::string unreachable, unreachable_all;
+  std::size_t unreachable_count = 0;
 };
 
 // How far a run has come, for a progress display.
@@ -198,11 +202,15 @@ void WriteRunOutputs(const Job& job, const RunResult& result, const std::string&
                      const std::string& limiters_path, bool keep_failed = false);
 
 // A surface job's passes and how they are linked (for RunJob and the comparison of exports).
+// How many unreachable stretches the run summary lists (the report lists them all).
+inline constexpr std::size_t kSummaryUnreachable = 8;
+
 struct SurfaceSetup {
   strategies::PassList passes;
-  // How many faces of the file the tool was kept out of besides the one each pass finishes (the
-  // part's others, check_faces, and the job's other faces).
+  // How many faces of the file the tool was kept out of that the job does not finish (the part's
+  // others, or check_faces); each face's passes are also kept out of the job's other faces.
   int checked_faces = 0;
+  int job_faces = 0;  // how many faces the job finishes
   // The heights links traverse at: the clearance above the face where the tool passes
   // (geometry/link_height.hpp). Found on first use, from any thread: a job with one pass and no
   // link to it never meshes the face.
@@ -214,6 +222,15 @@ struct SurfaceSetup {
 };
 // `phase`, if given, is called as the STEP file is read and as the passes are traced.
 SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_view)>& phase = {});
+// Refuses a surface job before planning where its passes leave the machine's travel: each pass's
+// start, end and poses every `step_mm` of arc length between, and the ends of the link moves
+// between passes (where they back off, rise, traverse and come down), through machine.Inverse.
+// Throws dtis::Error in the planner's words (axis, required value, travel), naming the face, pass
+// and arc length, prefixed with `job_file`. A pose the planner would fail on for another reason
+// (no convergence, a branch jump) is left for the planner to report.
+inline constexpr double kTravelCheckStepMm = 5.0;
+void CheckPassesInTravel(const SurfaceSetup& setup, const Machine& machine,
+                         const std::string& job_file, double step_mm = kTravelCheckStepMm);
 // The faces a surface job names, as numbers of its STEP file's faces, in the job's order. Throws
 // dtis::Error naming the job's key for a name no face has or a face given twice.
 std::vector<int> JobFaces(const SurfaceSpec& spec, const geometry::StepModel& model);

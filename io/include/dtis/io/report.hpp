@@ -34,6 +34,9 @@ struct ReportInput {
   double programmed_feed_mm_min = 0.0;      // 0: not known
   double compute_s = -1.0;                  // < 0: not known
   int passes = 0;                           // surface jobs
+  // Surface jobs: every stretch the passes left out where the tool does not fit, a line each
+  // (RunResult::unreachable_all), listed whole under the summary; "" for none.
+  std::string unreachable;
   // Surface jobs: the face, drawn under the path (MeshJobSurface).
   const geometry::FaceMesh* surface = nullptr;
   // `dtis compare`: the comparison table and every variant's feed against time on one plot; the
