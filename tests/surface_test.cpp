@@ -1323,6 +1323,13 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
   }
 }
 
+// The wavy face as a CAM user sets it up away from the XYZAC's pole: rotated 60 deg about X.
+TopoDS_Face WavyFaceSetUp60AboutX() {
+  gp_Trsf set_up;
+  set_up.SetRotation(gp::OX(), 60.0 * std::numbers::pi / 180.0);
+  return TopoDS::Face(BRepBuilderAPI_Transform(WavyRuledFace(), set_up, Standard_True).Shape());
+}
+
 // Tilted 10 deg, every pass of the wavy face comes within 0.07 to 1.5 deg of vertical, the pole of
 // a table-tilting machine (its C axis), where C turns half a revolution in a few millimetres. A
 // CAM user sets the part up away from it: rotated 60 deg about X, the axis stays 18 to 82 deg from
@@ -1330,10 +1337,7 @@ TEST(SurfaceProperty, AWavyRuledFaceWithEveryStrategyToolAndOrientation) {
 // pass per strategy, the ball's and the bull nose's, whose flat part leaves the valleys out),
 // never under the face.
 TEST(SurfaceProperty, TiltedPassesOnAWavyFaceSetUpAwayFromThePolePlanAndVerify) {
-  gp_Trsf set_up;
-  set_up.SetRotation(gp::OX(), 60.0 * std::numbers::pi / 180.0);
-  const TopoDS_Face face =
-      TopoDS::Face(BRepBuilderAPI_Transform(WavyRuledFace(), set_up, Standard_True).Shape());
+  const TopoDS_Face face = WavyFaceSetUp60AboutX();
   const FaceSurface surface(face, "wavy, set up 60 deg about X");
   const Orientation tilted = Tilted10();
   const auto guide = WavyGuide();
@@ -1382,10 +1386,7 @@ TEST(SurfaceProperty, TiltedPassesOnAWavyFaceSetUpAwayFromThePolePlanAndVerify) 
 // (ends included), the tool rides over the valleys it rode over with the rule's axis only where
 // the straight move keeps it above the face, and a pass plans within every limit.
 TEST(SurfaceProperty, ASmoothedAxisKeepsABullNoseOutOfAWavyFaceAtItsValleys) {
-  gp_Trsf set_up;
-  set_up.SetRotation(gp::OX(), 60.0 * std::numbers::pi / 180.0);
-  const TopoDS_Face face =
-      TopoDS::Face(BRepBuilderAPI_Transform(WavyRuledFace(), set_up, Standard_True).Shape());
+  const TopoDS_Face face = WavyFaceSetUp60AboutX();
   const FaceSurface surface(face, "wavy, set up 60 deg about X");
   const Tool bull = Torus(Tool::Kind::kBullNose, 5.0, 1.0);
   constexpr double kTol = 0.09 * std::numbers::pi / 180.0;
