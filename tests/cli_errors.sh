@@ -420,6 +420,9 @@ for reader in dtis rs274; do
   printf 'rapid_feed_mm_min = 1e-9\n' | cat "$job" - > "$work/rapid_$reader.toml"
   printf 'G0 X0 Y0\nG1 X5 F600\nG0 X10\nM2\n' > "$work/bad.ngc"
   bounded_case 1 "crawling-rapid-$reader" "bad.ngc:3: the program takes at least 8.33e+07 h up to this block, more than the 24 h a job may take; this block alone takes 8.33e+07 h: its rapid of 5 mm at 1e-09 mm/min ([path] rapid_feed_mm_min" -- "$dtis" run "$work/rapid_$reader.toml" -o "$work/out.csv"
+  # A whole circle ends where it starts: its sweep, not its chord (0), is what it takes.
+  printf 'G17 G0 X-5 Y0\nG2 X-5 Y0 I5 F0.001\nM2\n' > "$work/bad.ngc"
+  bounded_case 1 "crawling-circle-$reader" "bad.ngc:2: the program takes at least 524 h up to this block, more than the 24 h a job may take; this block alone takes 524 h: its move of 31.4159 mm at F0.001 mm/min" -- "$dtis" run "$job" -o "$work/out.csv"
 done
 awk 'BEGIN { print "G0 X0 Y0"; for (i = 0; i < 1000000; i++) printf "G1 X%d Y%d F1000\n", i % 2, (i / 2) % 2; print "M2" }' > "$work/million.ngc"
 sed 's/bad.ngc/million.ngc/' "$work/gcode_dtis.toml" > "$work/million.toml"

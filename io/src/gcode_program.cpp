@@ -112,7 +112,8 @@ GcodeSegments::GcodeSegments(MoveSource next, std::string file,
       axis_of_(file_, uses_rotary, machine),
       base_(base),
       options_(options),
-      rapid_feed_(RapidFeed(options, machine)) {
+      rapid_feed_(RapidFeed(options, machine)),
+      least_(file_, base.max_motion_s) {
   // The program starts where the machine is.
   const GcodeStart start = GcodeStartOf(options, machine);
   tip_ = start_tip_ = start.tip;
@@ -258,7 +259,7 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     }
     Read r;
     r.rapid = m.kind == GcodeMove::Kind::kRapid;
-    r.feed = r.rapid ? rapid_feed_ : std::min(m.feed_mm_min / 60.0, options_.max_feed_mm_s);
+    r.feed = MoveFeed(m, options_, rapid_feed_);
     if (r.rapid) ++rapids_;
     geometry::ChainMove& c = r.move;
     c.kind = m.kind == GcodeMove::Kind::kLinear || r.rapid ? geometry::ChainMove::Kind::kLine
@@ -275,33 +276,61 @@ std::optional<GcodeSegments::Read> GcodeSegments::ReadMove() {
     r.rest_before = m.rest_before || std::exchange(skipped_rest_, false);
     r.dwell_s = m.dwell_s + std::exchange(skipped_dwell_, 0.0);
     if (m.kind == GcodeMove::Kind::kNurbs) r.nurbs = NurbsCurve(*m.nurbs, file_, m.line);
-    CountLeastTime(m, r);
+    least_.Add(m, tip_, r.feed, r.dwell_s);
     return r;
   }
 }
 
-void GcodeSegments::CountLeastTime(const GcodeMove& m, const Read& r) {
-  // An arc or a curve is no shorter than its chord.
-  const double chord = (m.to - tip_).norm();
-  const double move_s = chord / r.feed, block_s = move_s + r.dwell_s;
-  least_s_ += block_s;
-  if (least_s_ <= base_.max_motion_s) return;
+double MoveFeed(const GcodeMove& m, const GcodeOptions& options, double rapid_feed_mm_s) {
+  return m.kind == GcodeMove::Kind::kRapid ? rapid_feed_mm_s
+                                           : std::min(m.feed_mm_min / 60.0, options.max_feed_mm_s);
+}
+
+namespace {
+
+// An arc's radius times its sweep in its plane (the helix' rise left out), from `from`: no more
+// than its length.
+double ArcSweepLength(const GcodeMove& m, const Vector3d& from) {
+  const Vector3d n = m.normal.normalized();
+  const auto in_plane = [&](const Vector3d& v) { return v - n * n.dot(v); };
+  const Vector3d u = in_plane(from - m.center), v = in_plane(m.to - m.center);
+  const double r = u.norm();
+  if (!(r > 0.0) || !n.allFinite()) return 0.0;
+  double sweep = std::atan2(n.dot(u.cross(v)), u.dot(v));  // counterclockwise about n
+  if (m.kind == GcodeMove::Kind::kArcCw) sweep = -sweep;
+  if (sweep <= 1e-12) sweep += 2.0 * std::numbers::pi;  // the same point again: a whole turn
+  return r * (sweep + 2.0 * std::numbers::pi * std::max(0, m.turns - 1));
+}
+
+}  // namespace
+
+void ProgramLeastTime::Add(const GcodeMove& m, const Vector3d& from, double feed_mm_s,
+                           double dwell_s) {
+  // A move is no shorter than its chord, an arc than its sweep.
+  double length = (m.to - from).norm();
+  if (m.kind == GcodeMove::Kind::kArcCw || m.kind == GcodeMove::Kind::kArcCcw) {
+    const double sweep = ArcSweepLength(m, from);
+    if (std::isfinite(sweep)) length = std::max(length, sweep);
+  }
+  const double move_s = length / feed_mm_s, block_s = move_s + dwell_s;
+  seconds_ += block_s;
+  if (seconds_ <= max_s_) return;
   std::string what;
-  if (r.dwell_s >= move_s) {
-    what = fmt::format("a dwell (G4) of {:.6g} s before it", r.dwell_s);
-  } else if (r.rapid) {
+  if (dwell_s >= move_s) {
+    what = fmt::format("a dwell (G4) of {:.6g} s before it", dwell_s);
+  } else if (m.kind == GcodeMove::Kind::kRapid) {
     what = fmt::format(
         "its rapid of {:.6g} mm at {:.6g} mm/min ([path] rapid_feed_mm_min, or the "
         "machine's velocities)",
-        chord, r.feed * 60.0);
+        length, feed_mm_s * 60.0);
   } else {
-    what = fmt::format("its move of {:.6g} mm at F{:.6g} mm/min", chord, r.feed * 60.0);
+    what = fmt::format("its move of {:.6g} mm at F{:.6g} mm/min", length, feed_mm_s * 60.0);
   }
   throw Error(
       "{}:{}: the program takes at least {:.3g} h up to this block, more than the {:g} h a job may "
       "take; this block alone takes {:.3g} h: {}{}",
-      file_, m.line, least_s_ / 3600.0, base_.max_motion_s / 3600.0, block_s / 3600.0, what,
-      block_s < 0.01 * least_s_ ? " (does a loop repeat more often than meant?)" : "");
+      file_, m.line, seconds_ / 3600.0, max_s_ / 3600.0, block_s / 3600.0, what,
+      block_s < 0.01 * seconds_ ? " (does a loop repeat more often than meant?)" : "");
 }
 
 // Feed moves at one feed form a chain; with blend_rapids, so do consecutive rapids. A chain ends

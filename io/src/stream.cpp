@@ -122,54 +122,6 @@ class ListSegments final : public SegmentSource {
   std::optional<StreamSegment> first_;
 };
 
-// The least time a program's moves take: each at most at its F word (rapids at the rapid feed),
-// along at least its chord (an arc: its radius times its sweep), and its dwells. Read before
-// anything else, so that a program that would run for more than a job may take (24 h), an
-// endless loop among them, is refused as soon as it has gone past that bound.
-class ProgramDuration {
- public:
-  ProgramDuration(const std::string& file, double rapid_mm_s)
-      : file_(file), rapid_mm_s_(rapid_mm_s) {}
-  void Add(const GcodeMove& m) {
-    double length_mm = 0.0;
-    if (at_) {
-      length_mm = (m.to - *at_).norm();
-      if ((m.kind == GcodeMove::Kind::kArcCw || m.kind == GcodeMove::Kind::kArcCcw)) {
-        length_mm = std::max(length_mm, ArcLength(m));
-      }
-    }
-    at_ = m.to;
-    const double feed_mm_s = m.kind == GcodeMove::Kind::kRapid ? rapid_mm_s_ : m.feed_mm_min / 60.0;
-    if (feed_mm_s > 0.0 && std::isfinite(length_mm)) seconds_ += length_mm / feed_mm_s;
-    if (std::isfinite(m.dwell_s) && m.dwell_s > 0.0) seconds_ += m.dwell_s;
-    if (seconds_ > interp::kMaxMotionS) {
-      throw Error(
-          "{}:{}: the program moves for more than the {:g} h a job may take by this block (its "
-          "moves at their F words, its rapids at {:g} mm/s, its dwells); an endless loop?",
-          file_, m.line, kMaxMotionHours, rapid_mm_s_);
-    }
-  }
-
- private:
-  // Radius times sweep in the arc's plane (the helix' rise left out): less than its length.
-  double ArcLength(const GcodeMove& m) const {
-    const Eigen::Vector3d n = m.normal.normalized();
-    const auto in_plane = [&](const Eigen::Vector3d& v) { return v - n * n.dot(v); };
-    const Eigen::Vector3d u = in_plane(*at_ - m.center), v = in_plane(m.to - m.center);
-    const double r = u.norm();
-    if (!(r > 0.0) || !n.allFinite()) return 0.0;
-    double sweep = std::atan2(n.dot(u.cross(v)), u.dot(v));  // counterclockwise about n
-    if (m.kind == GcodeMove::Kind::kArcCw) sweep = -sweep;
-    if (sweep <= 1e-12) sweep += 2.0 * std::numbers::pi;  // the same point again: a whole turn
-    return r * (sweep + 2.0 * std::numbers::pi * std::max(0, m.turns - 1));
-  }
-
-  std::string file_;
-  double rapid_mm_s_;
-  std::optional<Eigen::Vector3d> at_;
-  double seconds_ = 0.0;
-};
-
 // A G-code program's segments, built as the stream reaches them: the machine holds one chain of
 // moves at a time, not the program, and of a chain longer than window_blocks only what lies
 // around the planner. The program is read and its segments built once before, so that a bad
@@ -201,9 +153,14 @@ class GcodeProducer {
     std::array<bool, 3> uses_rotary{};
     checked([&] {
       GcodeReader blocks(file_, which, tools, cancel, start);
-      ProgramDuration duration(file_, RapidFeed(job.path.gcode, machine));
+      // The program's least time, as `dtis run` counts it: one that moves for more than a job
+      // may (24 h), an endless loop among them, is refused as soon as it has gone past that.
+      ProgramLeastTime least(file_, job.vpop.max_motion_s);
+      const double rapid_feed = RapidFeed(job.path.gcode, machine);
+      Eigen::Vector3d at = start.tip;
       while (const auto m = blocks.Next()) {
-        duration.Add(*m);
+        least.Add(*m, at, MoveFeed(*m, job.path.gcode, rapid_feed), m->dwell_s);
+        at = m->to;
         if (cancel != nullptr) cancel->ThrowIfRequested();
       }
       uses_rotary = blocks.UsesRotary();

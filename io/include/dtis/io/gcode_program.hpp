@@ -125,6 +125,26 @@ struct GcodeSegment {
 // what BuildGcodePlan returns at once, for a program streamed to a machine, which then holds one
 // chain of moves at a time instead of the whole program. Segments and messages are
 // BuildGcodePlan's.
+// The feed of a program's move (mm/s): a rapid at `rapid_feed_mm_s`, any other move at its F word
+// capped by options.max_feed_mm_s.
+double MoveFeed(const GcodeMove& m, const GcodeOptions& options, double rapid_feed_mm_s);
+
+// The least time a program takes up to each block: each move at its feed along at least its chord
+// (an arc also at least its radius times its sweep), and the dwells. Past `max_s` (a job's 24 h)
+// Add throws dtis::Error naming the block, what the program and the block take, and why.
+class ProgramLeastTime {
+ public:
+  ProgramLeastTime(std::string file, double max_s) : file_(std::move(file)), max_s_(max_s) {}
+  // Move `m` from `from` at `feed_mm_s`, after the dwell `dwell_s`.
+  void Add(const GcodeMove& m, const Eigen::Vector3d& from, double feed_mm_s, double dwell_s);
+  double Seconds() const { return seconds_; }
+
+ private:
+  std::string file_;
+  double max_s_;
+  double seconds_ = 0.0;
+};
+
 class GcodeSegments {
  public:
   // Yields the program's moves in order, nothing at the end.
@@ -142,7 +162,7 @@ class GcodeSegments {
   // the rapid feed, and the dwells. Next() throws dtis::Error "<file>:<line>: ..." naming the
   // block at which it passes the options' max_motion_s (24 h): a feed, a rapid feed or a dwell
   // mistyped, or a loop that repeats too often.
-  double LeastTime() const { return least_s_; }
+  double LeastTime() const { return least_.Seconds(); }
 
   // Windowed chains are smoothed as 3- or 5-axis chains before their moves are read: the
   // five_axis flags of a scan of the same program, windowed chains in order.
@@ -163,7 +183,6 @@ class GcodeSegments {
     std::shared_ptr<const geometry::BSplineCurve> nurbs;  // G5.2: the curve, its own chain
   };
   std::optional<Read> ReadMove();
-  void CountLeastTime(const GcodeMove& m, const Read& r);
   bool Joins(const Read& r) const;
   void Open(const Read& r);
   void Append(const Read& r);
@@ -206,7 +225,7 @@ class GcodeSegments {
   std::size_t windowed_ = 0;  // windowed chains so far
   bool scan_only_ = false;
   int rapids_ = 0, segments_ = 0;
-  double least_s_ = 0.0;
+  ProgramLeastTime least_;
 };
 
 // `base` carries the period and the tangential limits; each segment gets its own feed. Throws
