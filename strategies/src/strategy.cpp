@@ -693,12 +693,16 @@ class Builder {
 
   // Arc length between the samples of the rule's axis a law is fitted to, mm (at most).
   static constexpr double kAxisSampleMm = 0.04;
+  // The law's knot spans to start with, at most (mm).
+  static constexpr double kAxisSpanMm = 20.0;
   // A knot span of the law is not split below this (mm): the axis cannot be smoothed within the
   // tolerance then.
   static constexpr double kMinAxisSpanMm = 0.5;
   // The fit aims at this fraction of the tolerance at its samples; the check between the
   // smoothed pass's points holds to the whole tolerance.
   static constexpr double kAxisFitAim = 0.8;
+  // Halvings of the smoothing's range of 22 decades: to 1.4 % of a decade.
+  static constexpr int kSmoothingBisections = 12;
 
   [[noreturn]] void FailSmoothing(const SurfacePass& pass, double s, const Eigen::Vector2d& uv,
                                   const std::string& what) const {
@@ -710,11 +714,15 @@ class Builder {
         orientation_.axis_tolerance_rad * 180.0 / M_PI, what);
   }
 
-  // The quintic law closest to the samples with knots refined (in the middle of every span
-  // where a sample is more than `aim` off) until every sample is within it.
+  // The quintic law with knots refined (in the middle of every span where a sample is more than
+  // `aim` off the least-squares fit) until every sample can be within it, then smoothed as much
+  // as that allows (Smoothest).
   AxisLaw FitLaw(const SurfacePass& pass, const std::vector<double>& s,
                  const std::vector<Eigen::Vector3d>& axes, double aim) const {
-    std::vector<double> breaks{s.front(), s.back()};
+    // Equal spans of at most kAxisSpanMm to start with: room for the smoothing to shape the law.
+    const int m = std::max(1, static_cast<int>(std::ceil((s.back() - s.front()) / kAxisSpanMm)));
+    std::vector<double> breaks;
+    for (int i = 0; i <= m; ++i) breaks.push_back(s.front() + (s.back() - s.front()) * i / m);
     for (;;) {
       AxisLaw law = FitAxisLaw(s, axes, breaks);
       std::vector<bool> off(breaks.size() - 1, false);
@@ -727,7 +735,7 @@ class Builder {
         if (dev > aim) off[span] = any = true;
         if (dev > worst) worst = dev, worst_s = s[i];
       }
-      if (!any) return law;
+      if (!any) return Smoothest(s, axes, breaks, aim, std::move(law));
       std::vector<double> refined{breaks.front()};
       for (std::size_t j = 0; j + 1 < breaks.size(); ++j) {
         if (off[j]) {
@@ -744,6 +752,38 @@ class Builder {
       }
       breaks = std::move(refined);
     }
+  }
+
+  // The law on `breaks` with the largest smoothing (FitAxisLaw) that keeps every sample within
+  // `aim`: of the laws that follow the rule as closely, the one whose axis turns most evenly.
+  // `plain` is the unsmoothed law, within `aim`.
+  static AxisLaw Smoothest(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& axes,
+                           const std::vector<double>& breaks, double aim, AxisLaw plain) {
+    const auto within = [&](const AxisLaw& law) {
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        if (geometry::Angle(law.At(s[i]), axes[i]) > aim) return false;
+      }
+      return true;
+    };
+    // Bisection on log10(smoothing), mm^6, between one that holds and one that does not.
+    double lo = -8.0, hi = 14.0;
+    AxisLaw best = std::move(plain);
+    {
+      AxisLaw at_lo = FitAxisLaw(s, axes, breaks, std::pow(10.0, lo));
+      if (!within(at_lo)) return best;
+      best = std::move(at_lo);
+    }
+    for (int k = 0; k < kSmoothingBisections; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      AxisLaw law = FitAxisLaw(s, axes, breaks, std::pow(10.0, mid));
+      if (within(law)) {
+        lo = mid;
+        best = std::move(law);
+      } else {
+        hi = mid;
+      }
+    }
+    return best;
   }
 
   // `exact` with its axis smoothed (SmoothAxes); its start and end contact points in `start`
