@@ -275,7 +275,9 @@ range = [40, 40]
             std::string::npos)
       << io::FormatRunSummary(smoothed, r);
   const io::Job exact = job("kind = \"tilt_yaw\"\ntilt_deg = 10");
-  EXPECT_EQ(io::FormatRunSummary(exact, io::RunJob(exact)).find("smoothed"), std::string::npos);
+  const std::string exact_summary = io::FormatRunSummary(exact, io::RunJob(exact));
+  EXPECT_EQ(exact_summary.find("smoothed"), std::string::npos);
+  EXPECT_NE(exact_summary.find("the rule's exact axis"), std::string::npos) << exact_summary;
   test::ExpectError([&] { job("kind = \"tilt_yaw\"\ntilt_deg = 10\naxis_tolerance_deg = -1"); },
                     {"axis_tolerance_deg", "[0, 5]"});
   test::ExpectError([&] { job("kind = \"fixed\"\naxis_tolerance_deg = 0.1"); },

@@ -586,14 +586,15 @@ std::string FormatCompareText(const CompareResult& r) {
 
 std::string FormatCompareCsv(const CompareResult& r) {
   std::string out =
-      "variant,planner,tolerance_mm,blocks,motion_time_s,pass_time_s,export_deviation_mm,"
-      "export_axis_deviation_deg,motion_deviation_mm,motion_axis_deviation_deg,worst_ratio,"
-      "verified,limiting,compute_s\n";
+      "variant,planner,tolerance_mm,axis_tolerance_deg,blocks,motion_time_s,pass_time_s,"
+      "export_deviation_mm,export_axis_deviation_deg,motion_deviation_mm,"
+      "motion_axis_deviation_deg,worst_ratio,verified,limiting,compute_s\n";
   for (const auto& v : r.variants) {
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name,
-                       interp::PlannerName(v.planner), v.tolerance_mm, v.blocks, v.motion_time_s,
-                       v.pass_time_s, v.export_deviation_mm, v.export_axis_deviation_deg,
-                       v.motion_deviation_mm, v.motion_axis_deviation_deg, v.verify.worst_ratio,
+    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name,
+                       interp::PlannerName(v.planner), v.tolerance_mm, v.axis_tolerance_deg,
+                       v.blocks, v.motion_time_s, v.pass_time_s, v.export_deviation_mm,
+                       v.export_axis_deviation_deg, v.motion_deviation_mm,
+                       v.motion_axis_deviation_deg, v.verify.worst_ratio,
                        v.verify.Passed() ? "yes" : "no", v.limiting, v.compute_s);
   }
   return out;
