@@ -358,14 +358,18 @@ for sig in TERM INT HUP $fatal_signals; do
     2>"$out/sig_stream.log" &
   pid=$!
   pids+=("$pid")
-  sleep 0.5
+  sleep 1
   kill -s "$sig" "$pid"
   rc=0
   wait "$pid" || rc=$?
   problem=""
   test "$rc" = 5 || problem="exit $rc, expected 5"
-  "$dtis" verify "$out/sig_stream.csv" "$machine" >"$out/sig.verify" || problem="$problem; $(tail -1 "$out/sig.verify")"
-  at_rest "$out/sig_stream.csv" || problem="$problem; not at rest"
+  # On a loaded machine the signal may come before the first setpoint: nothing moved, nothing to
+  # verify.
+  if ! grep -q "aborted after 0 setpoints" "$out/sig_stream.log"; then
+    "$dtis" verify "$out/sig_stream.csv" "$machine" >"$out/sig.verify" || problem="$problem; $(tail -1 "$out/sig.verify")"
+    at_rest "$out/sig_stream.csv" || problem="$problem; not at rest"
+  fi
   grep -q "stopped by       $(signal_name "$sig")$" "$out/sig_stream.log" || problem="$problem; the signal not named"
   if [ -n "$problem" ]; then
     echo "FAIL stream SIG$sig: ${problem#; }" >&2
