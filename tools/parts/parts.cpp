@@ -16,7 +16,7 @@
 
 namespace dtis::parts {
 
-Handle(Geom_BSplineSurface) CubicWaveSurface() {
+Handle(Geom_BSplineSurface) CubicWaveSurface(double slope) {
   constexpr int kSpans = 8, kPoles = kSpans + 3;
   constexpr double kSpan = 10.0;
   TColStd_Array1OfReal knots(1, kSpans + 1);
@@ -36,14 +36,14 @@ Handle(Geom_BSplineSurface) CubicWaveSurface() {
   for (int i = 1; i <= kPoles; ++i) {
     for (int j = 1; j <= kPoles; ++j) {
       const double x = greville[i - 1], y = greville[j - 1];
-      poles(i, j) = gp_Pnt(x, y, 3.0 * std::sin(2.0 * std::numbers::pi * y / 80.0) + 0.15 * x);
+      poles(i, j) = gp_Pnt(x, y, 3.0 * std::sin(2.0 * std::numbers::pi * y / 80.0) + slope * x);
     }
   }
   return new Geom_BSplineSurface(poles, knots, knots, mults, mults, 3, 3);
 }
 
-TopoDS_Face CubicWaveFace() {
-  return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(CubicWaveSurface()), 1e-7).Face();
+TopoDS_Face CubicWaveFace(double slope) {
+  return BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(CubicWaveSurface(slope)), 1e-7).Face();
 }
 
 void WriteStep(const TopoDS_Shape& shape, const std::string& path) {

@@ -10,10 +10,11 @@
 namespace dtis::parts {
 
 // A bicubic B-spline face over 80 x 80 mm with simple knots every 10 mm both ways (C2, so its
-// normal is only C1 across the knot lines): one wave of 3 mm along y and a slope of 0.15 along x,
-// z = 3 sin(2 pi y / 80) + 0.15 x at the poles' Greville abscissae.
-Handle(Geom_BSplineSurface) CubicWaveSurface();
-TopoDS_Face CubicWaveFace();
+// normal is only C1 across the knot lines): one wave of 3 mm along y and a slope along x,
+// z = 3 sin(2 pi y / 80) + slope x at the poles' Greville abscissae. With slope 0 its crest (near
+// y = 20) and its trough (near y = 60) are level lines along x. The sample part has slope 0.15.
+Handle(Geom_BSplineSurface) CubicWaveSurface(double slope = 0.15);
+TopoDS_Face CubicWaveFace(double slope = 0.15);
 
 // Writes `shape` as STEP AP214 (OpenCASCADE's writer, its messages silenced). Throws
 // std::runtime_error naming the path when it cannot.
