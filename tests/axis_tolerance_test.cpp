@@ -45,40 +45,11 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 // The tool touches the face: its corner's centre is the corner radius from it (OpenCASCADE).
 constexpr double kContactMm = 1e-6;
 
-// A bicubic face over 80 x 80 mm with knot lines every 10 mm both ways: one wave of 3 mm along y
-// (z = 3 sin(2 pi y / 80) + 0.15 x at the poles' Greville abscissae), so the normal is C1 across
-// the knot lines y = 10, 20, ... that a pass along y crosses.
-Handle(Geom_BSplineSurface) CubicWaveSurface() {
-  constexpr int kSpans = 8, kPoles = kSpans + 3;
-  constexpr double kSpan = 10.0;
-  TColStd_Array1OfReal knots(1, kSpans + 1);
-  TColStd_Array1OfInteger mults(1, kSpans + 1);
-  for (int i = 1; i <= kSpans + 1; ++i) {
-    knots(i) = kSpan * (i - 1);
-    mults(i) = i == 1 || i == kSpans + 1 ? 4 : 1;
-  }
-  // The Greville abscissae of the clamped cubic knot vector: the poles there make x and y linear.
-  std::vector<double> flat(3, 0.0);
-  for (int i = 0; i <= kSpans; ++i) flat.push_back(kSpan * i);
-  for (int i = 0; i < 3; ++i) flat.push_back(kSpan * kSpans);
-  std::vector<double> greville;
-  for (int i = 0; i < kPoles; ++i)
-    greville.push_back((flat[i + 1] + flat[i + 2] + flat[i + 3]) / 3);
-  TColgp_Array2OfPnt poles(1, kPoles, 1, kPoles);
-  for (int i = 1; i <= kPoles; ++i) {
-    for (int j = 1; j <= kPoles; ++j) {
-      const double x = greville[i - 1], y = greville[j - 1];
-      poles(i, j) = gp_Pnt(x, y, 3.0 * std::sin(2.0 * std::numbers::pi * y / 80.0) + 0.15 * x);
-    }
-  }
-  return new Geom_BSplineSurface(poles, knots, knots, mults, mults, 3, 3);
-}
-
 // The face set up 60 deg about X, as a user keeps a tilted pass away from the XYZAC's pole (see
 // docs/limits.md): its axis stays far from vertical.
 TopoDS_Face CubicWaveFace() {
   const TopoDS_Face flat =
-      BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(CubicWaveSurface()), 1e-7).Face();
+      BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(test::CubicWaveSurface(0.15)), 1e-7).Face();
   gp_Trsf set_up;
   set_up.SetRotation(gp::OX(), 60.0 * kDeg);
   return TopoDS::Face(BRepBuilderAPI_Transform(flat, set_up, Standard_True).Shape());

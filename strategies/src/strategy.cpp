@@ -32,6 +32,9 @@ struct Gap {
   double contact_mm = 0.0;  // of the contact point's path on the face through it
   std::string why;
   bool outside_bounds = false;  // the tip leaves the job's bounds: not reported as unreachable
+  // Opened where the trace could not step on (a uv line, whose other end is not traced): it
+  // closes only where the tool fits a whole march step on.
+  bool stuck = false;
 };
 
 struct Candidate {
@@ -184,6 +187,8 @@ class Builder {
   int DetermineSide() const {
     if (spec_.side == StrategySpec::Side::kFace) return FaceSign();
     if (spec_.side == StrategySpec::Side::kReversed) return -FaceSign();
+    // A face of a solid: its outside, where the material is not.
+    if (spec_.bounds_solid) return FaceSign();
     double up = 0.0;
     geometry::SurfaceDerivatives d;
     ForGrid(16, true, [&](const Eigen::Vector2d& uv) {
@@ -532,6 +537,9 @@ class Builder {
     // The line cannot be followed on from cur inside a gap: the crossing ends there, and what lies
     // beyond is traced from its other end (plane strategies) or left out.
     const auto end_in_gap = [&] {
+      // A uv line is traced from one end only: what lies past here to where it leaves the face
+      // is left out too.
+      if (!IsPlane()) gap->contact_mm += RestOfIsoLine(cur, gap_dir);
       close_gap(cur, s, false);
       cand->end = cur;
       cand->length = s;
@@ -552,6 +560,14 @@ class Builder {
           return end_in_gap();
         }
         const double chord = (next.tip - cur.tip).norm();
+        if (gap->stuck && fits(next, s + chord)) {
+          s += chord;
+          gap->contact_mm += (next.p - cur.p).norm();
+          cur = next;
+          close_gap(cur, s, true);
+          h = full / 1024.0;
+          continue;
+        }
         if (fits(next, s + chord)) {
           // The tool fits again: the next piece starts where it does, traced on from there.
           const ContactPoint from = cur;
@@ -584,7 +600,7 @@ class Builder {
           continue;
         }
         Bridge piece;
-        const bool top = OverTop(e, cur, s, &piece);
+        const bool top = OverTop(e, cur, s, &piece) || OverCrest(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
           // Over a top the bottom's disc rides the chord: checked along it like any step.
           for (int i = 1; i < 8 && top; ++i) {
@@ -614,11 +630,15 @@ class Builder {
                       cur.n.dot(cur.axis))
                 : EvalStatusText(status);
         if (skip && (status == EvalStatus::kOk || flat)) {
-          // A flat bottom resting on the face away from the strategy's contact point (a top on
-          // a uv or plane_cc line): the line ends here, said so.
+          // A flat bottom resting on the face away from the strategy's contact point (a saddle
+          // on a uv or plane_cc line): plane strategies trace the line's far side from its other
+          // end, so the line ends here, said so; a uv line goes on by its contact point to where
+          // the tool fits again.
           why = stuck;
           open_gap(cur, s);
-          return end_in_gap();
+          if (IsPlane()) return end_in_gap();
+          gap->stuck = true;
+          continue;
         }
         Fail(cand->line, cand->constraint, s, cur.uv, stuck);
       }
@@ -965,6 +985,29 @@ class Builder {
     out->insert(out->end(), found.begin(), found.end());
   }
 
+  // The length of the iso-parametric line through `from` (a uv line's contact point), from it in
+  // the direction `dir` in (u, v) to where it first leaves the face, mm: the chords of 1024
+  // steps of the parameter to the UV box's side.
+  double RestOfIsoLine(const ContactPoint& from, const Eigen::Vector2d& dir) const {
+    const int k = spec_.along_u ? 0 : 1;
+    if (!(std::abs(dir[k]) > 0.0)) return 0.0;
+    const double end =
+        dir[k] > 0.0 ? (k == 0 ? face_.U1() : face_.V1()) : (k == 0 ? face_.U0() : face_.V0());
+    constexpr int kSteps = 1024;
+    Eigen::Vector2d uv = from.uv;
+    Eigen::Vector3d last = from.p;
+    geometry::SurfaceDerivatives d;
+    double length = 0.0;
+    for (int i = 1; i <= kSteps; ++i) {
+      uv[k] = from.uv[k] + (end - from.uv[k]) * i / kSteps;
+      if (!face_.Inside(uv.x(), uv.y())) break;
+      face_.D2(uv.x(), uv.y(), &d);
+      length += (d.p - last).norm();
+      last = d.p;
+    }
+    return length;
+  }
+
   // One step of about `h` mm of the contact point along the strategy's line on the face (not of
   // the tool's tip: this one goes on where the tip's path folds back), from `from`, in the
   // direction `dir` in (u, v) (updated to the line's direction there). False if the line cannot be
@@ -981,7 +1024,7 @@ class Builder {
     ContactPoint c;
     for (int it = 0; it < 20; ++it) {
       if (!face_.InBox(uv.x(), uv.y())) return false;
-      if (e.Evaluate(uv, &c, from.guide_t) != EvalStatus::kOk) return false;
+      if (!Evaluates(e, uv, &c, from.guide_t)) return false;
       if (std::abs(c.g) <= spec_.newton.tolerance_mm) {
         *to = c;
         *dir = t;
@@ -992,6 +1035,88 @@ class Builder {
       uv -= c.dg * (c.g / n2);
     }
     return false;
+  }
+
+  // Whether the point of the face at uv gives a contact point: evaluated, or sitting flat on a
+  // top where the strategy holds the contact point (kFlatContact: the tip on the contact point,
+  // one of the places the tool may stand there, checked like any other).
+  static bool Evaluates(const PassEvaluator& e, const Eigen::Vector2d& uv, ContactPoint* out,
+                        double guide_hint = std::numeric_limits<double>::quiet_NaN()) {
+    const EvalStatus st = e.Evaluate(uv, out, guide_hint);
+    return st == EvalStatus::kOk || (st == EvalStatus::kFlatContact &&
+                                     e.Constraint().kind != PassConstraint::Kind::kPlaneCl);
+  }
+
+  // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
+  // nose on a fixed axis comes onto a top or a crest of the face along a strategy line that
+  // holds the contact point (uv, plane_cc, leading_line), the piece over it (Bridge). The contact
+  // point stays on the crest while the bottom slides across it: the tip runs straight at the
+  // crest's height from where it stands on this side (R from the crest, as the contact point
+  // comes onto it) to where it stands on the far side, as the contact point leaves it. Every tool
+  // position of that chord is at most R from the crest point, so the bottom keeps touching it.
+  // False if this is not such a place: another tool, orientation or strategy, no point ahead on
+  // the line where the normal's part across the axis turns over, or a face that does not bend
+  // away from the tool all round there (a saddle, a valley: the bottom would rest on two places).
+  bool OverCrest(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
+    const PassConstraint& c = e.Constraint();
+    if (!(tool_.TorusRadius() > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
+        c.kind == PassConstraint::Kind::kPlaneCl) {
+      return false;
+    }
+    const Eigen::Vector3d a = cur.axis;
+    const Eigen::Vector3d side = cur.n - cur.n.dot(a) * a;
+    if (!(side.norm() > 0.0) || !(cur.duv.norm() > 0.0)) return false;
+    const Eigen::Vector3d w_in = side.normalized();
+    // Which side of the crest a contact point is on: + before it (the bottom's edge on this
+    // side), - past it; 0 sitting flat.
+    const auto before = [&](const ContactPoint& p) { return (p.n - p.n.dot(a) * a).dot(w_in); };
+    // The contact point `length` mm along the line from cur (false: the line cannot be followed).
+    const auto along = [&](double length, ContactPoint* out) {
+      Eigen::Vector2d dir = cur.duv.normalized();
+      return MarchContact(e, cur, length, &dir, out);
+    };
+    // The first point past the crest, by doubling from 1e-4 mm (the trace's last step), at most
+    // a tool radius ahead.
+    constexpr double kPast = 1e-4;
+    double lo = 0.0, hi = kPast;
+    ContactPoint p;
+    for (;; hi *= 2.0) {
+      if (hi > tool_.radius || !along(hi, &p)) return false;
+      if (before(p) < 0.0) break;
+      lo = hi;
+    }
+    // The crest between: bisection on the contact's path to 1e-12 mm.
+    ContactPoint top = p;
+    while (hi - lo > 1e-12) {
+      const double mid = 0.5 * (lo + hi);
+      if (!along(mid, &p)) return false;
+      if (before(p) > 0.0) {
+        lo = mid;
+      } else {
+        hi = mid, top = p;
+      }
+    }
+    geometry::SurfaceDerivatives d;
+    face_.D2(top.uv.x(), top.uv.y(), &d);
+    if (CurvatureTowards(d, top.n) > 1e-9 || top.n.dot(a) < 1.0 - 1e-9) return false;
+    // The contact point leaving the crest on the far side: the first, from kPast beyond it on,
+    // whose tip the contact point fixes.
+    ContactPoint exit;
+    double past = hi;
+    for (;; past *= 2.0) {
+      if (past > tool_.radius || !along(past + kPast, &exit)) return false;
+      if (e.Evaluate(exit.uv, &exit, cur.guide_t) == EvalStatus::kOk && before(exit) < 0.0) break;
+    }
+    if (!e.Inside(exit.uv) || exit.tangent.dot(cur.tangent) < 0.0) return false;
+    piece->entry = cur;
+    piece->exit = exit;
+    piece->top_uv = top.uv;
+    piece->top = top.p;
+    piece->tip_in = cur.tip;
+    piece->direction = (exit.tip - cur.tip).normalized();
+    piece->s_start = piece->s_in = s;
+    piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
+    return true;
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
@@ -1025,8 +1150,12 @@ class Builder {
       const Eigen::Vector3d nv = d.suv.cross(d.sv) + d.su.cross(d.svv);
       Eigen::Matrix2d j;
       j << nu.dot(e1), nv.dot(e1), nu.dot(e2), nv.dot(e2);
-      // A crest (the top is a line) leaves j singular: the least-norm step to it.
-      uv -= j.completeOrthogonalDecomposition().solve(f);
+      // A crest (the top is a line) leaves j singular: the least-norm step to it. Along a level
+      // crest j's column is rounding noise, which must not count as rank (the step would slide
+      // along the crest, to the top of another chord).
+      Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix2d> cod;
+      cod.setThreshold(1e-9);
+      uv -= cod.compute(j).solve(f);
     }
     if (!found || (d.p - cur.p).norm() > 1e-2) return false;
     const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(side_);
