@@ -49,6 +49,7 @@
 #include <numbers>
 #include <random>
 #include <sstream>
+#include <tuple>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
@@ -2111,6 +2112,93 @@ TEST(SurfacePass, AFlatBottomCrossesALevelCrestOnEveryStrategy) {
       for (int k = 0; k <= 4000; ++k) top = std::max(top, wave->Value(40.0, 10.0 + k * 0.005).Z());
       EXPECT_NEAR(highest, top, 1e-6);
     }
+  }
+}
+
+// A whole sphere of radius 10 (its poles collapsed edges of (u, v), its seam the half meridian
+// y = 0, x > 0) finished by a ball R1 on a fixed axis: plane_cl lines through its pole and beside
+// it, closed sections (planes y = c cut it in circles that touch neither the seam nor a pole) and
+// uv lines from pole to pole. Every line is found, and what its passes finish and what is left out
+// (the lower half, where the ball would touch with its upper side) add up to the whole line:
+// a circle of radius sqrt(100 - d^2), d the contact points' distance from the centre's plane
+// (10/11 of the tip plane's), or half a great circle.
+TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
+  const Handle(Geom_SphericalSurface) sphere = new Geom_SphericalSurface(gp_Ax3(gp::XOY()), 10.0);
+  const TopoDS_Face face =
+      BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi, -std::numbers::pi / 2,
+                              std::numbers::pi / 2, 1e-7)
+          .Face();
+  const FaceSurface surface(face, "sphere");
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  // What each line (keyed by `key` of a contact point on it) finishes and leaves out, mm.
+  const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
+    std::map<long, double> covered;
+    for (const auto& pass : passes.passes) {
+      strategies::ContactPoint c;
+      EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+      covered[key(c.p)] += ContactPathLength(*pass, 0.05);
+    }
+    for (const auto& u : passes.unreachable) {
+      EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
+      covered[key(u.from)] += u.length_mm;
+    }
+    return covered;
+  };
+  for (const Eigen::Vector3d normal : {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()}) {
+    // Through the pole (x = 0, a great circle through both), beside it (x = +-0.25), the whole
+    // face (stepover 1 mm); planes y = c: closed sections, but y = 0 along the seam.
+    for (const auto& [first, last, step] :
+         {std::tuple{0.0, 0.0, 1.0}, std::tuple{-0.25, 0.25, 0.5}, std::tuple{-10.5, 10.5, 1.0}}) {
+      SCOPED_TRACE(
+          fmt::format("normal ({}, {}, 0), lines {} to {}", normal.x(), normal.y(), first, last));
+      StrategySpec spec;
+      spec.plane_normal = normal;
+      spec.direction = normal.cross(Eigen::Vector3d::UnitZ());
+      spec.range = std::array<double, 2>{first, last};
+      spec.stepover_mm = step;
+      const auto passes = strategies::BuildPasses(surface, Ball(1.0), Orientation{}, spec);
+      const auto covered = coverage(passes, [&](const Eigen::Vector3d& p) {
+        return std::lround(p.dot(normal) * 1.1 / 0.25);  // the tip plane, in quarter mm
+      });
+      EXPECT_EQ(covered.size(), static_cast<std::size_t>(std::lround((last - first) / step)) + 1)
+          << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double d = quarter * 0.25 / 1.1;
+        EXPECT_NEAR(length, 2.0 * std::numbers::pi * std::sqrt(100.0 - d * d), 0.01)
+            << "tip plane at " << quarter * 0.25 << passes.UnreachableText(100);
+      }
+      // Each pass of the lines through and beside the pole planned within every limit, the ball
+      // on the sphere and the tip on its plane.
+      if (first == -10.5) continue;
+      for (const auto& pass : passes.passes) {
+        interp::VpopOptions opt;
+        opt.feed_mm_s = 50.0;
+        const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+        EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+        const double plane = pass->Evaluator().Constraint().value;
+        for (const auto& sp : planned.points) {
+          const Pose pose = xyz->Forward(sp.q);
+          ASSERT_NEAR((pose.tip + pose.axis).norm(), 11.0, 1e-6);
+          ASSERT_NEAR(pose.tip.dot(normal), plane, 1e-6);
+        }
+      }
+    }
+  }
+  // uv lines along v, from the south pole to the north one: the upper half of each meridian.
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kUv;
+  spec.along_u = false;
+  spec.stepover_mm = 5.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(1.0), Orientation{}, spec);
+  const auto covered = coverage(
+      passes, [](const Eigen::Vector3d& p) { return std::lround(std::atan2(p.y(), p.x()) * 1e3); });
+  EXPECT_EQ(covered.size(), 8u);
+  for (const auto& [angle, length] : covered) {
+    EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01) << "u = " << angle * 1e-3;
+  }
+  for (const auto& pass : passes.passes) {
+    EXPECT_NEAR((pass->EndPose().tip - Eigen::Vector3d(0, 0, 10)).norm(), 0.0, 1e-3);
   }
 }
 
