@@ -539,21 +539,28 @@ class Builder {
           if (i + di > kSeedGrid || j + dj > kSeedGrid) continue;
           const double ga = value(i, j), gb = value(i + di, j + dj);
           if (!std::isfinite(ga) || !std::isfinite(gb) || (ga <= 0.0) == (gb <= 0.0)) continue;
-          // The root on this side of the cell, by bisection.
-          Eigen::Vector2d a = node(i, j), b = node(i + di, j + dj);
-          double g_lo = ga;
+          // The root on this side of the cell: regula falsi (Illinois) on the side's parameter.
+          const Eigen::Vector2d a = node(i, j), b = node(i + di, j + dj);
+          double ta = 0.0, tb = 1.0, fa = ga, fb = gb;
+          int kept = 0;  // which end stayed the last time (-1: b, +1: a)
           ContactPoint r;
-          bool ok = true;
-          for (int it = 0; it < 60 && ok; ++it) {
-            const Eigen::Vector2d m = 0.5 * (a + b);
-            ok = e.Evaluate(m, &r) == EvalStatus::kOk;
-            if (!ok) break;
-            if ((r.g <= 0.0) == (g_lo <= 0.0)) {
-              a = m, g_lo = r.g;
-            } else {
-              b = m;
+          bool ok = false;
+          for (int it = 0; it < 60; ++it) {
+            const double t = (ta * fb - tb * fa) / (fb - fa);
+            if (e.Evaluate(a + (b - a) * t, &r) != EvalStatus::kOk) break;
+            if (std::abs(r.g) <= 1e-9 || tb - ta <= 1e-15) {
+              ok = true;
+              break;
             }
-            if (std::abs(r.g) <= 1e-9) break;
+            if ((r.g <= 0.0) == (fa <= 0.0)) {
+              ta = t, fa = r.g;
+              if (kept == -1) fb *= 0.5;
+              kept = -1;
+            } else {
+              tb = t, fb = r.g;
+              if (kept == 1) fa *= 0.5;
+              kept = 1;
+            }
           }
           if (!ok || !e.Inside(r.uv) || Traced(line, r.p, *out)) continue;
           TraceFromSeed(line, e, r, out);
