@@ -48,6 +48,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -1519,6 +1520,44 @@ TEST(SurfaceJob, SideAutoMachinesTheOutsideOfASolid) {
   const std::string lone = test::Scratch("lone_sphere_face.stp");
   test::WriteStep(model.Face(sphere), lone);
   EXPECT_FALSE(StepModel::Load(lone).BoundsSolid(1));
+}
+
+// Two whole spheres of radius 10, 30 mm apart, finished in one job in planes y = 4: each plane cuts
+// each sphere in a circle that touches neither its seam nor a pole (a closed section). Both are
+// finished, the ball (R3) on each sphere's offset.
+TEST(SurfaceJob, ClosedSectionsAreFinishedOnEveryFaceOfAJob) {
+  TopoDS_Compound both;
+  BRep_Builder builder;
+  builder.MakeCompound(both);
+  for (const double x : {0.0, 30.0}) {
+    const Handle(Geom_SphericalSurface) sphere =
+        new Geom_SphericalSurface(gp_Ax3(gp_Pnt(x, 0, 0), gp::DZ()), 10.0);
+    builder.Add(both, BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi,
+                                              -std::numbers::pi / 2, std::numbers::pi / 2, 1e-7)
+                          .Face());
+  }
+  const std::string step = test::Scratch("two_spheres.stp");
+  test::WriteStep(both, step);
+  const io::Job job =
+      BallJob(step, "face = [1, 2]",
+              "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 1\nrange = [4, 4]",
+              test::Scratch("two_spheres.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  std::set<long> centres;
+  for (const auto& pass : setup.passes.passes) {
+    const Eigen::Vector3d centre = pass->StartPose().tip + 3.0 * pass->StartPose().axis;
+    const long c = centre.x() < 15.0 ? 0 : 30;
+    centres.insert(c);
+    PathState st = pass->Start();
+    for (int i = 0; i <= 8; ++i) {
+      const PathSample smp = pass->At(st, *pass->Length() * i / 8);
+      st = smp.state;
+      EXPECT_NEAR((smp.pose.tip + 3.0 * smp.pose.axis - Eigen::Vector3d(c, 0, 0)).norm(), 13.0,
+                  1e-6);
+      EXPECT_NEAR(smp.pose.tip.y(), 4.0, 1e-6);
+    }
+  }
+  EXPECT_EQ(centres, (std::set<long>{0, 30}));
 }
 
 TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
