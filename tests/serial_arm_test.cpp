@@ -1,0 +1,225 @@
+// Six-joint serial arms: inverse-then-forward round trips over random reachable poses (a chain of
+// joint frames and a modified Denavit-Hartenberg chain), the locked joint staying locked, the
+// configuration never flipping, a pass through the wrist singularity refused naming it and one
+// beside it slowed; machine files read, refused and written back.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <numbers>
+#include <random>
+
+#include "dtis/core/error.hpp"
+#include "dtis/core/file_text.hpp"
+#include "dtis/geometry/curve_path.hpp"
+#include "dtis/kinematics/machines.hpp"
+#include "test_support.hpp"
+
+namespace dtis {
+namespace {
+
+using kinematics::MachineDescription;
+using kinematics::SerialArmMachine;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+const std::string kRx170b = "samples/machines/staubli_rx170b.toml";
+
+MachineDescription Rx170b() { return kinematics::ReadMachineDescription(test::Source(kRx170b)); }
+
+// LinuxCNC's PUMA 560 simulation (puma560_dh.hal, genserkins) in mm, with a tool and J6 locked.
+MachineDescription Puma560() {
+  MachineDescription d;
+  d.name = "puma560";
+  d.kinematics = kinematics::Kinematics::kSerialArm;
+  for (int i = 1; i <= 6; ++i) {
+    d.axes.push_back(
+        {fmt::format("J{}", i), true, -170 * kDeg, 170 * kDeg, false, 2.0, 10.0, 100.0});
+  }
+  auto& arm = d.arm;
+  arm.form = kinematics::ArmDescription::Form::kDh;
+  const double in = 25.4, h = std::numbers::pi / 2;
+  arm.a = {0, 0, 17 * in, 0, 0, 0};
+  arm.alpha = {0, h, 0, h, -h, h};
+  arm.d = {26.45 * in, -5.5 * in, 0, 17.05 * in, 0, 2.2 * in};
+  arm.tool_tip = {0, 0, 150};
+  arm.home = {0, -30 * kDeg, -60 * kDeg, 0, 45 * kDeg, 0};
+  return d;
+}
+
+double Angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+// Random joints within travel, J6 at its locked value, away from every singularity: the pose they
+// hold, solved from joints near them, gives them back, and the pose to 1e-9 mm and 1e-9 rad.
+void RoundTrips(const MachineDescription& d, std::uint64_t seed) {
+  const SerialArmMachine arm(d);
+  std::mt19937_64 rng(test::g_seed + seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), nudge(-0.02, 0.02);
+  long tried = 0, solved = 0, from_home = 0;
+  for (long c = 0; solved < test::g_count && tried < 50 * test::g_count; ++c) {
+    ++tried;
+    AxisVector q(6);
+    for (int i = 0; i < 6; ++i) {
+      const Axis& a = d.axes[static_cast<std::size_t>(i)];
+      const double lo = std::max(a.travel_min, -3.0), hi = std::min(a.travel_max, 3.0);
+      q[i] = lo + (hi - lo) * unit(rng);
+    }
+    q[d.arm.locked_joint] = d.arm.locked_at;
+    if (arm.Configuration(q).cwiseAbs().minCoeff() < 0.05) continue;
+    const Pose pose = arm.Forward(q);
+    AxisVector near = q;
+    for (int i = 0; i < 6; ++i) near[i] += i == d.arm.locked_joint ? 0.0 : nudge(rng);
+    AxisVector back;
+    const InverseResult r = arm.Inverse(pose, &near, &back);
+    ASSERT_EQ(r.status, InverseStatus::kOk)
+        << d.name << " case " << c << ": " << DescribeInverseFailure(arm, r);
+    ++solved;
+    EXPECT_EQ(back[d.arm.locked_joint], d.arm.locked_at) << "the locked joint moved";
+    ASSERT_LE((back - q).cwiseAbs().maxCoeff(), 1e-8) << d.name << " case " << c;
+    const Pose again = arm.Forward(back);
+    ASSERT_LE((again.tip - pose.tip).norm(), 1e-9) << d.name << " case " << c;
+    ASSERT_LE(Angle(again.axis, pose.axis), 1e-9) << d.name << " case " << c;
+    // From the home posture: the configuration may differ, the pose may not.
+    if (arm.Inverse(pose, nullptr, &back).status == InverseStatus::kOk) {
+      ++from_home;
+      const Pose h = arm.Forward(back);
+      ASSERT_LE((h.tip - pose.tip).norm(), 1e-9) << d.name << " case " << c;
+      ASSERT_LE(Angle(h.axis, pose.axis), 1e-9) << d.name << " case " << c;
+      EXPECT_EQ(back[d.arm.locked_joint], d.arm.locked_at);
+    }
+  }
+  EXPECT_EQ(solved, test::g_count) << "too few random poses away from singularities";
+  EXPECT_GT(from_home, 0);
+}
+
+TEST(SerialArm, InverseThenForwardFramesChain) { RoundTrips(Rx170b(), 101); }
+
+TEST(SerialArm, InverseThenForwardDhChain) { RoundTrips(Puma560(), 103); }
+
+// The modified DH chain is Craig's: joint i's frame is RotX(alpha) TransX(a) RotZ(q) TransZ(d)
+// from the previous one; written out by hand for one posture.
+TEST(SerialArm, DhChainIsCraigs) {
+  const MachineDescription d = Puma560();
+  const SerialArmMachine arm(d);
+  AxisVector q(6);
+  q << 0.3, -0.7, 0.4, 1.1, 0.6, 0.0;
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  for (std::size_t i = 0; i < 6; ++i) {
+    const double ca = std::cos(d.arm.alpha[i]), sa = std::sin(d.arm.alpha[i]);
+    const double ct = std::cos(q[static_cast<int>(i)]), st = std::sin(q[static_cast<int>(i)]);
+    Eigen::Matrix4d m;
+    m << ct, -st, 0, d.arm.a[i], st * ca, ct * ca, -sa, -sa * d.arm.d[i], st * sa, ct * sa, ca,
+        ca * d.arm.d[i], 0, 0, 0, 1;
+    t = t * m;
+  }
+  EXPECT_LE((arm.Flange(q).matrix() - t).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+// A line with the tool vertical through the pose where the forearm hangs straight down (J5 = 0, J4
+// and J6 in line), across the arm's plane: J4 would have to turn half a turn at once there.
+struct WristPass {
+  MachineDescription d = Rx170b();
+  Pose singular;
+  WristPass() {
+    d.arm.part_origin.setZero();
+    AxisVector q(6);
+    q << 0.0, 60 * kDeg, -120 * kDeg, 0.0, 0.0, 0.0;
+    singular = SerialArmMachine(d).Forward(q);
+  }
+};
+
+TEST(SerialArm, PassThroughTheWristSingularityIsRefusedNamingIt) {
+  const WristPass w;
+  const SerialArmMachine arm(w.d);
+  ASSERT_LE(Angle(w.singular.axis, Eigen::Vector3d::UnitZ()), 1e-12);
+  const Eigen::Vector3d side(0, 20, 0);
+  const geometry::LinePath line(w.singular.tip - side, w.singular.tip + side,
+                                Eigen::Vector3d::UnitZ());
+  interp::VpopOptions o;
+  o.feed_mm_s = 50.0;
+  try {
+    test::PlanAndVerify(line, arm, o);
+    FAIL() << "planned through the wrist singularity";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("wrist singularity"), std::string::npos) << what;
+    EXPECT_NE(what.find("J5"), std::string::npos) << what;
+    EXPECT_NE(what.find("arc length"), std::string::npos) << what;  // where on the path
+  }
+  // The pose itself, solved from either side, is refused the same way.
+  AxisVector q;
+  const InverseResult r = arm.Inverse(w.singular, nullptr, &q);
+  EXPECT_EQ(r.status, InverseStatus::kSingular);
+  EXPECT_EQ(r.axis, 4);
+}
+
+// Along the arm's plane with the tool tilted 0.3 deg across it: the forearm turns through the
+// tool's direction 0.3 deg away from it, J4 swings half a turn and J5 passes near 0. The planner
+// slows the tool there, every setpoint keeps the joints' limits and the configuration never flips.
+TEST(SerialArm, PassBesideTheWristSingularityIsSlowed) {
+  const WristPass w;
+  const SerialArmMachine arm(w.d);
+  const Eigen::Vector3d along(20, 0, 0);
+  const Eigen::Vector3d tilted =
+      Eigen::AngleAxisd(0.3 * kDeg, Eigen::Vector3d::UnitX()) * Eigen::Vector3d::UnitZ();
+  const geometry::LinePath line(w.singular.tip - along, w.singular.tip + along, tilted);
+  interp::VpopOptions o;
+  o.feed_mm_s = 50.0;
+  const test::Planned p = test::PlanAndVerify(line, arm, o);
+  EXPECT_TRUE(p.report.Passed()) << p.report.worst;
+  double slowest = INFINITY, j4_min = INFINITY, j4_max = -INFINITY;
+  for (std::size_t k = 1; k < p.points.size(); ++k) {
+    if (std::abs(p.points[k].s - 20.0) < 10.0) {
+      slowest = std::min(slowest, (p.points[k].s - p.points[k - 1].s) / o.period_s);
+    }
+    j4_min = std::min(j4_min, p.points[k].q[3]);
+    j4_max = std::max(j4_max, p.points[k].q[3]);
+    const Eigen::Vector3d a = arm.Configuration(p.points[k - 1].q);
+    const Eigen::Vector3d b = arm.Configuration(p.points[k].q);
+    ASSERT_GT(a.cwiseProduct(b).minCoeff(), 0.0) << "configuration flipped at setpoint " << k;
+  }
+  EXPECT_GT(j4_max - j4_min, 120 * kDeg) << "J4 did not swing: not near the singularity";
+  EXPECT_LT(slowest, 0.5 * o.feed_mm_s);
+}
+
+TEST(SerialArm, MachineFileWrittenBackReadsToTheSameArm) {
+  for (const MachineDescription& d : {Rx170b(), Puma560()}) {
+    const std::string text = kinematics::FormatMachineFile(d);
+    const MachineDescription back = kinematics::ParseMachineDescription(text, "written.toml");
+    const SerialArmMachine a(d), b(back);
+    AxisVector q(6);
+    q << 0.1, 0.5, -1.2, 0.3, 0.8, 0.0;
+    EXPECT_LE((a.Flange(q).matrix() - b.Flange(q).matrix()).cwiseAbs().maxCoeff(), 1e-9) << text;
+    EXPECT_LE((a.Forward(q).tip - b.Forward(q).tip).norm(), 1e-9) << text;
+    EXPECT_EQ(back.arm.locked_joint, d.arm.locked_joint);
+    for (std::size_t i = 0; i < 6; ++i) {
+      EXPECT_NEAR(back.axes[i].vmax, d.axes[i].vmax, 1e-12);
+      EXPECT_NEAR(back.arm.home[i], d.arm.home[i], 1e-12);
+    }
+  }
+}
+
+TEST(SerialArm, BadArmFilesNameTheKey) {
+  const std::string text = *ReadFileText(test::Source(kRx170b));
+  const auto fails = [&](const std::string& from, const std::string& to, const std::string& key) {
+    std::string t = text;
+    const auto at = t.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    t.replace(at, from.size(), to);
+    try {
+      kinematics::ParseMachine(t, "arm.toml");
+      ADD_FAILURE() << "accepted " << to;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  };
+  fails("locked_joint = \"J6\"", "locked_joint = \"J7\"", "arm.locked_joint");
+  fails("[0, 0, 1], [0, 1, 0], [0, -1, 0]", "[0, 0, 1], [0, 1, 0]", "frames.axis");
+  fails("[frames]", "[dh]\nconvention = \"modified\"\n[frames]", "dh");
+  fails("[axes.J6]", "[axes.J7]", "J6");
+  fails("home = [0, 45, -75, 0, 60, 0]", "home = [0, 45, -75, 0, 60]", "arm.home");
+  fails("axis = [0, 0, -1]", "axis = [0, 0, 0]", "tool.axis");
+}
+
+}  // namespace
+}  // namespace dtis
