@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <filesystem>
 #include <numbers>
 #include <random>
 
@@ -219,6 +220,51 @@ TEST(SerialArm, BadArmFilesNameTheKey) {
   fails("[axes.J6]", "[axes.J7]", "J6");
   fails("home = [0, 45, -75, 0, 60, 0]", "home = [0, 45, -75, 0, 60]", "arm.home");
   fails("axis = [0, 0, -1]", "axis = [0, 0, 0]", "tool.axis");
+}
+
+const std::string kPuma = "/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/puma/";
+
+// LinuxCNC's PUMA simulations as they ship: puma560.ini (genserkins, inch) and puma.ini
+// (pumakins, mm) with the joint limits of their INI, and the arm's pose at random joints where
+// pumakins' own closed forms (pumakins.c, pumaKinematicsForward) put it.
+TEST(SerialArm, LinuxcncArmsImportAsTheyStand) {
+  if (!std::filesystem::exists(kPuma + "puma560.ini")) {
+    GTEST_SKIP() << "LinuxCNC's sample configurations are not installed";
+  }
+  kinematics::MachineLoadOptions o;
+  o.jerk_time_s = 0.05;
+  const MachineDescription g = kinematics::ReadMachineDescription(kPuma + "puma560.ini", o);
+  EXPECT_EQ(g.kinematics, kinematics::Kinematics::kSerialArm);
+  ASSERT_EQ(g.axes.size(), 6u);
+  EXPECT_NEAR(g.axes[2].travel_min, -215 * kDeg, 1e-12);  // [JOINT_2] MIN_LIMIT
+  EXPECT_NEAR(g.axes[2].travel_max, 35 * kDeg, 1e-12);
+  EXPECT_NEAR(g.axes[0].vmax, 30 * kDeg, 1e-12);
+  EXPECT_NEAR(g.axes[0].jmax, 200 * kDeg / 0.05, 1e-9);
+  EXPECT_NEAR(g.arm.a[2], 17 * 25.4, 1e-9);  // genserkins.A-2 17 (inch)
+  EXPECT_NEAR(g.arm.d[3], 17.05 * 25.4, 1e-9);
+  EXPECT_NEAR(g.arm.home[4], 0.1 * kDeg, 1e-12);  // [JOINT_4] HOME
+
+  const MachineDescription p = kinematics::ReadMachineDescription(kPuma + "puma.ini", o);
+  const SerialArmMachine arm(p);
+  const double a2 = 400, a3 = 50, d3 = 100, d4 = 400, d6 = 95;  // puma_dh.hal
+  std::mt19937_64 rng(test::g_seed + 107);
+  std::uniform_real_distribution<double> angle(-3.0, 3.0);
+  for (long c = 0; c < test::g_count; ++c) {
+    AxisVector q(6);
+    for (int i = 0; i < 6; ++i) q[i] = angle(rng);
+    const double c1 = std::cos(q[0]), s1 = std::sin(q[0]), c2 = std::cos(q[1]), s2 = std::sin(q[1]),
+                 c4 = std::cos(q[3]), s4 = std::sin(q[3]), c5 = std::cos(q[4]), s5 = std::sin(q[4]);
+    const double s23 = std::sin(q[1] + q[2]), c23 = std::cos(q[1] + q[2]);
+    const double t1 = a2 * c2 + a3 * c23 - d4 * s23;
+    const Eigen::Vector3d wrist(c1 * t1 - d3 * s1, s1 * t1 + d3 * c1,
+                                -a3 * s23 - a2 * s2 - d4 * c23);
+    const double u = c23 * c4 * s5 + s23 * c5;
+    const Eigen::Vector3d z(-c1 * u - s1 * s4 * s5, -s1 * u + c1 * s4 * s5,
+                            s23 * c4 * s5 - c23 * c5);
+    const Pose pose = arm.Forward(q);
+    ASSERT_LE((pose.tip - (wrist + d6 * z)).norm(), 1e-9) << "case " << c;
+    ASSERT_LE((pose.axis + z).norm(), 1e-12) << "case " << c;
+  }
 }
 
 }  // namespace

@@ -238,7 +238,7 @@ MachineDescription ReadMachine(TomlTable& root) {
   return d;
 }
 
-std::string Number(double v) { return fmt::format("{:.15g}", v); }
+std::string Number(double v) { return fmt::format("{:.15g}", v + 0.0); }  // no "-0"
 
 std::string Point(const Eigen::Vector3d& p) {
   return fmt::format("[{}, {}, {}]", Number(p.x()), Number(p.y()), Number(p.z()));
