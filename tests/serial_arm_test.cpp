@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <numbers>
 #include <random>
+#include <sstream>
 
 #include "dtis/core/error.hpp"
 #include "dtis/core/file_text.hpp"
@@ -265,6 +266,47 @@ TEST(SerialArm, LinuxcncArmsImportAsTheyStand) {
     ASSERT_LE((pose.tip - (wrist + d6 * z)).norm(), 1e-9) << "case " << c;
     ASSERT_LE((pose.axis + z).norm(), 1e-12) << "case " << c;
   }
+}
+
+// LinuxCNC's genserkins, run headless on its PUMA 560 pins by bench/linuxcnc/arm_kins.py: at each
+// recorded posture dtis' arm, imported from puma560.ini, holds the pose LinuxCNC reported, and
+// solving that pose (J6 locked where LinuxCNC had it) gives LinuxCNC's joints back.
+TEST(SerialArm, AgreesWithLinuxcncGenserkins) {
+  if (!std::filesystem::exists(kPuma + "puma560.ini")) {
+    GTEST_SKIP() << "LinuxCNC's sample configurations are not installed";
+  }
+  kinematics::MachineLoadOptions o;
+  o.jerk_time_s = 0.05;
+  MachineDescription d = kinematics::ReadMachineDescription(kPuma + "puma560.ini", o);
+  const auto text = ReadFileText(test::Source("tests/data/linuxcnc_arm/puma560_genserkins.txt"));
+  ASSERT_TRUE(text);
+  std::istringstream lines(*text);
+  int postures = 0;
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream in(line);
+    double v[12];
+    for (double& x : v) ASSERT_TRUE(in >> x) << line;
+    AxisVector q(6);
+    for (int i = 0; i < 6; ++i) q[i] = v[i] * kDeg;
+    d.arm.locked_at = q[5];
+    const SerialArmMachine arm(d);
+    const Eigen::Vector3d tip = Eigen::Vector3d(v[6], v[7], v[8]) * 25.4;
+    const Eigen::Matrix3d r = (Eigen::AngleAxisd(v[11] * kDeg, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(v[10] * kDeg, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(v[9] * kDeg, Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
+    EXPECT_LE((arm.Flange(q).translation() - tip).norm(), 1e-9) << line;
+    EXPECT_LE((arm.Flange(q).linear() - r).cwiseAbs().maxCoeff(), 1e-9) << line;
+    AxisVector near = q, back;
+    for (int i = 0; i < 5; ++i) near[i] += 0.01;
+    const Pose pose{tip, -r.col(2)};
+    const InverseResult result = arm.Inverse(pose, &near, &back);
+    ASSERT_EQ(result.status, InverseStatus::kOk) << DescribeInverseFailure(arm, result);
+    EXPECT_LE((back - q).cwiseAbs().maxCoeff(), 1e-9) << line;
+    ++postures;
+  }
+  EXPECT_EQ(postures, 4);
 }
 
 }  // namespace
