@@ -184,6 +184,29 @@ TEST(SerialArm, PassBesideTheWristSingularityIsSlowed) {
   EXPECT_LT(slowest, 0.5 * o.feed_mm_s);
 }
 
+// The paper's open pocket on the RX170B (the sample job): verified on the joint positions, at rest
+// at both ends, J6 never moving and the configuration the same at every setpoint.
+TEST(SerialArm, OpenPocketOnTheRx170b) {
+  const io::Job job = io::LoadJob(test::Source("samples/jobs/open_pocket_rx170b.toml"));
+  const io::RunResult r = io::RunJob(job);
+  EXPECT_TRUE(r.verify.Passed()) << r.verify.worst;
+  EXPECT_TRUE(r.verify.starts_at_rest);
+  EXPECT_TRUE(r.verify.ends_at_rest);
+  const auto& arm = dynamic_cast<const SerialArmMachine&>(*r.machine);
+  const io::FileUnits units(arm);
+  Eigen::Vector3d first;
+  for (std::size_t k = 0; k < r.table.Rows(); ++k) {
+    std::vector<double> row;
+    for (const auto& column : r.table.columns) row.push_back(column[k]);
+    const AxisVector q = units.ToPlanner(row);
+    ASSERT_EQ(q[5], 0.0) << "J6 moved at row " << k;
+    const Eigen::Vector3d c = arm.Configuration(q);
+    if (k == 0) first = c;
+    ASSERT_GT(c.cwiseProduct(first).minCoeff(), 0.0) << "configuration flipped at row " << k;
+    ASSERT_GT(c.cwiseAbs().minCoeff(), 0.05) << "near a singularity at row " << k;
+  }
+}
+
 TEST(SerialArm, MachineFileWrittenBackReadsToTheSameArm) {
   for (const MachineDescription& d : {Rx170b(), Puma560()}) {
     const std::string text = kinematics::FormatMachineFile(d);
