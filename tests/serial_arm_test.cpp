@@ -244,6 +244,9 @@ TEST(SerialArm, BadArmFilesNameTheKey) {
   fails("[axes.J6]", "[axes.J7]", "J6");
   fails("home = [0, 45, -75, 0, 60, 0]", "home = [0, 45, -75, 0, 60]", "arm.home");
   fails("axis = [0, 0, -1]", "axis = [0, 0, 0]", "tool.axis");
+  fails("home = [0, 45, -75, 0, 60, 0]", "home = [0, 45, -175, 0, 60, 0]", "arm.home");
+  fails("locked_joint = \"J6\"\nlocked_at = 0", "locked_joint = \"J5\"\nlocked_at = 130",
+        "arm.locked_at");
 }
 
 const std::string kPuma = "/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/puma/";

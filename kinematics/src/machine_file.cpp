@@ -181,6 +181,19 @@ void ReadArm(TomlTable& root, MachineDescription* d) {
   arm.locked_at = a.OptionalNumber("locked_at")
                       .value_or(arm.home[static_cast<std::size_t>(arm.locked_joint)] / u.angle) *
                   u.angle;
+  // The arm starts every path from home with the locked joint where it stays: both within travel.
+  const auto within = [&](std::string_view key, std::size_t joint, double value) {
+    const Axis& j = d->axes[joint];
+    if (!j.continuous && (value < j.travel_min || value > j.travel_max)) {
+      a.Fail(key,
+             fmt::format("{} at {:g} is outside its travel [{:g}, {:g}] (in the file's angle "
+                         "unit)",
+                         j.name, value / u.angle, j.travel_min / u.angle, j.travel_max / u.angle));
+    }
+  };
+  for (std::size_t i = 0; i < 6; ++i) within("home", i, arm.home[i]);
+  within(a.Has("locked_at") ? "locked_at" : "locked_joint",
+         static_cast<std::size_t>(arm.locked_joint), arm.locked_at);
   if (const auto margin = a.OptionalNumber("singularity_margin")) {
     if (!(*margin > 0.0 && *margin * u.angle < kPi / 4)) {
       a.Fail("singularity_margin", "expected an angle > 0 and below 45 deg");
