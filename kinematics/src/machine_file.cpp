@@ -181,6 +181,10 @@ void ReadArm(TomlTable& root, MachineDescription* d) {
   arm.locked_at = a.OptionalNumber("locked_at")
                       .value_or(arm.home[static_cast<std::size_t>(arm.locked_joint)] / u.angle) *
                   u.angle;
+  if (arm.locked_joint != 5 && ToolOnLastAxis(arm)) {
+    a.Fail("locked_joint",
+           "the tool lies on J6's axis, so J6 only turns it about its own axis: expected \"J6\"");
+  }
   // The arm starts every path from home with the locked joint where it stays: both within travel.
   const auto within = [&](std::string_view key, std::size_t joint, double value) {
     const Axis& j = d->axes[joint];

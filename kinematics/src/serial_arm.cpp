@@ -45,6 +45,13 @@ constexpr int kHomotopySteps = 64;
 
 }  // namespace
 
+bool ToolOnLastAxis(const ArmDescription& arm) {
+  const Vector3d j6 = arm.form == ArmDescription::Form::kDh ? Vector3d::UnitZ()
+                                                            : Vector3d(arm.axis[5].normalized());
+  return arm.tool_tip.cross(j6).norm() <= 1e-9 &&
+         arm.tool_axis.normalized().cross(j6).norm() <= 1e-12;
+}
+
 struct SerialArmMachine::Chain {
   std::array<Vector3d, kJoints> origin, axis;  // each joint's point and axis, base frame
   Eigen::Isometry3d flange;
@@ -63,6 +70,12 @@ SerialArmMachine::SerialArmMachine(const MachineDescription& d)
                 arm_.locked_joint + 1);
   }
   if (!(arm_.tool_axis.norm() > 0.0)) throw Error("machine '{}': the tool axis is zero", name_);
+  if (arm_.locked_joint != kJoints - 1 && ToolOnLastAxis(arm_)) {
+    throw Error(
+        "machine '{}': the tool lies on J6's axis, so J6 only turns it about its own axis: "
+        "lock J6, not J{}",
+        name_, arm_.locked_joint + 1);
+  }
   arm_.tool_axis.normalize();
   reach_mm_ = arm_.tool_tip.norm();
   for (int i = 0; i < kJoints; ++i) {

@@ -157,6 +157,10 @@ class HeadTableMachine final : public FiveAxisMachine {
   Pose Forward(const AxisVector& q) const override;
 };
 
+// True when the tool lies on J6's axis (its tip on it, its axis along it): J6 then only turns the
+// tool about its own axis, the rotation a rotating tool leaves free, and J6 is the joint to lock.
+bool ToolOnLastAxis(const ArmDescription& arm);
+
 // A six-joint serial arm with one joint locked: poses (tool tip and axis, 5 numbers) to the five
 // free joints by Newton's method from the previous joints (from the home posture, followed along a
 // straight blend of poses, for the first), so that the configuration never flips between
