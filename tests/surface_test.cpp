@@ -1544,10 +1544,10 @@ TEST(SurfaceJob, ClosedSectionsAreFinishedOnEveryFaceOfAJob) {
               "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 1\nrange = [4, 4]",
               test::Scratch("two_spheres.toml"));
   const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
-  std::set<long> centres;
+  std::set<double> centres;
   for (const auto& pass : setup.passes.passes) {
     const Eigen::Vector3d centre = pass->StartPose().tip + 3.0 * pass->StartPose().axis;
-    const long c = centre.x() < 15.0 ? 0 : 30;
+    const double c = centre.x() < 15.0 ? 0.0 : 30.0;
     centres.insert(c);
     PathState st = pass->Start();
     for (int i = 0; i <= 8; ++i) {
@@ -1558,7 +1558,7 @@ TEST(SurfaceJob, ClosedSectionsAreFinishedOnEveryFaceOfAJob) {
       EXPECT_NEAR(smp.pose.tip.y(), 4.0, 1e-6);
     }
   }
-  EXPECT_EQ(centres, (std::set<long>{0, 30}));
+  EXPECT_EQ(centres, (std::set<double>{0.0, 30.0}));
 }
 
 TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
@@ -2204,9 +2204,10 @@ TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
       EXPECT_EQ(covered.size(), static_cast<std::size_t>(std::lround((last - first) / step)) + 1)
           << passes.UnreachableText(100);
       for (const auto& [quarter, length] : covered) {
-        const double d = quarter * 0.25 / 1.1;
+        const double d = static_cast<double>(quarter) * 0.25 / 1.1;
         EXPECT_NEAR(length, 2.0 * std::numbers::pi * std::sqrt(100.0 - d * d), 0.01)
-            << "tip plane at " << quarter * 0.25 << passes.UnreachableText(100);
+            << "tip plane at " << static_cast<double>(quarter) * 0.25
+            << passes.UnreachableText(100);
       }
       // Each pass of the lines through and beside the pole planned within every limit, the ball
       // on the sphere and the tip on its plane.
@@ -2235,7 +2236,8 @@ TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
       passes, [](const Eigen::Vector3d& p) { return std::lround(std::atan2(p.y(), p.x()) * 1e3); });
   EXPECT_EQ(covered.size(), 8u);
   for (const auto& [angle, length] : covered) {
-    EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01) << "u = " << angle * 1e-3;
+    EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01)
+        << "u = " << static_cast<double>(angle) * 1e-3;
   }
   for (const auto& pass : passes.passes) {
     EXPECT_NEAR((pass->EndPose().tip - Eigen::Vector3d(0, 0, 10)).norm(), 0.0, 1e-3);
