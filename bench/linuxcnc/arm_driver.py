@@ -12,37 +12,15 @@ import sys
 import time
 
 import linuxcnc
+from session import Session
 
 
 def main():
     targets = [[float(v) for v in t.split(",")] for t in os.environ["DTIS_ARM_JOINTS"].split(";")]
     capture = os.environ["DTIS_ARM_CAPTURE"]
-    s = linuxcnc.stat()
-    c = linuxcnc.command()
-    errors = linuxcnc.error_channel()
-
-    def wait_for(what, condition, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            s.poll()
-            error = errors.poll()
-            if error:
-                kind, text = error
-                if kind in (linuxcnc.NML_ERROR, linuxcnc.OPERATOR_ERROR):
-                    raise RuntimeError(f"LinuxCNC error while waiting for {what}: {text}")
-                print(f"arm_driver: LinuxCNC says: {text}", file=sys.stderr)
-            if condition():
-                return
-            time.sleep(0.01)
-        raise RuntimeError(f"timeout after {timeout} s waiting for {what}")
-
-    wait_for("the task to start", lambda: s.task_state == linuxcnc.STATE_ESTOP, 30)
-    c.state(linuxcnc.STATE_ESTOP_RESET)
-    c.state(linuxcnc.STATE_ON)
-    wait_for("machine on", lambda: s.task_state == linuxcnc.STATE_ON, 10)
-    c.mode(linuxcnc.MODE_MANUAL)
-    c.home(-1)
-    wait_for("homing", lambda: all(s.homed[: s.joints]), 30)
+    session = Session("arm_driver")
+    s, c, wait_for = session.s, session.c, session.wait_for
+    session.on_and_homed()
     c.teleop_enable(0)
     wait_for("joint mode", lambda: s.motion_mode == linuxcnc.TRAJ_MODE_FREE, 10)
     with open(capture, "w") as out:

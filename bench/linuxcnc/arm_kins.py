@@ -23,7 +23,7 @@ import tempfile
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from reference import fail, hal_environment  # noqa: E402
+from reference import fail, hal_environment, ini_head  # noqa: E402
 
 PUMA = pathlib.Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/puma")
 # Postures away from the singularities, within puma560.ini's joint limits (deg).
@@ -53,28 +53,8 @@ def write_config(folder):
     (folder / "arm.hal").write_text("\n".join(hal) + "\n")
     (folder / "tool.tbl").write_text("T1 P1 D0 Z0 ;dtis reference\n")
     (folder / "sim.var").write_text("")
-    ini = f"""[EMC]
-VERSION = 1.1
-MACHINE = dtis-arm-reference
-[DISPLAY]
-DISPLAY = {HERE / 'arm_driver.py'}
-[TASK]
-TASK = milltask
-CYCLE_TIME = 0.001
-[RS274NGC]
-PARAMETER_FILE = {folder}/sim.var
-[EMCIO]
-EMCIO = io
-CYCLE_TIME = 0.100
-TOOL_TABLE = {folder}/tool.tbl
-[EMCMOT]
-EMCMOT = motmod
-COMM_TIMEOUT = 1.0
-SERVO_PERIOD = 1000000
-[HAL]
-HALFILE = {folder}/arm.hal
-HALFILE = {PUMA / 'puma560_dh.hal'}
-[TRAJ]
+    ini = ini_head("dtis-arm-reference", HERE / "arm_driver.py", folder,
+                   [folder / "arm.hal", PUMA / "puma560_dh.hal"]) + f"""[TRAJ]
 COORDINATES = X Y Z A B C
 LINEAR_UNITS = inch
 ANGULAR_UNITS = deg

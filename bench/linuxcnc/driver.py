@@ -15,38 +15,16 @@ import sys
 import time
 
 import linuxcnc
+from session import Session
 
 
 def main():
     program = os.environ["DTIS_TP_PROGRAM"]
     start = os.environ["DTIS_TP_START"]
     capture = os.environ["DTIS_TP_CAPTURE"]
-    s = linuxcnc.stat()
-    c = linuxcnc.command()
-    errors = linuxcnc.error_channel()
-
-    def wait_for(what, condition, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            s.poll()
-            error = errors.poll()
-            if error:
-                kind, text = error
-                if kind in (linuxcnc.NML_ERROR, linuxcnc.OPERATOR_ERROR):
-                    raise RuntimeError(f"LinuxCNC error while waiting for {what}: {text}")
-                print(f"driver: LinuxCNC says: {text}", file=sys.stderr)
-            if condition():
-                return
-            time.sleep(0.01)
-        raise RuntimeError(f"timeout after {timeout} s waiting for {what}")
-
-    wait_for("the task to start", lambda: s.task_state == linuxcnc.STATE_ESTOP, 30)
-    c.state(linuxcnc.STATE_ESTOP_RESET)
-    c.state(linuxcnc.STATE_ON)
-    wait_for("machine on", lambda: s.task_state == linuxcnc.STATE_ON, 10)
-    c.mode(linuxcnc.MODE_MANUAL)
-    c.home(-1)
-    wait_for("homing", lambda: all(s.homed[: s.joints]), 30)
+    session = Session("driver")
+    s, c, wait_for = session.s, session.c, session.wait_for
+    session.on_and_homed()
     c.mode(linuxcnc.MODE_MDI)
     wait_for("MDI mode", lambda: s.task_mode == linuxcnc.MODE_MDI, 10)
     c.mdi(start)

@@ -132,6 +132,32 @@ def linuxcnc_program(program, tol, path):
     return path
 
 
+def ini_head(machine, display, folder, halfiles):
+    """The sections of a headless configuration's INI that do not depend on the machine, up to
+    [TRAJ]: its [DISPLAY] program, one task and motion cycle of 1 ms, and its HAL files in order."""
+    hal = "".join(f"HALFILE = {f}\n" for f in halfiles)
+    return f"""[EMC]
+VERSION = 1.1
+MACHINE = {machine}
+[DISPLAY]
+DISPLAY = {display}
+[TASK]
+TASK = milltask
+CYCLE_TIME = 0.001
+[RS274NGC]
+PARAMETER_FILE = {folder}/sim.var
+[EMCIO]
+EMCIO = io
+CYCLE_TIME = 0.100
+TOOL_TABLE = {folder}/tool.tbl
+[EMCMOT]
+EMCMOT = motmod
+COMM_TIMEOUT = 1.0
+SERVO_PERIOD = 1000000
+[HAL]
+{hal}"""
+
+
 def write_config(machine, folder, driver):
     ax = machine.axes
     hal = [
@@ -156,27 +182,7 @@ def write_config(machine, folder, driver):
     (folder / "sim.var").write_text("")
     vmax = max(a["v"] for a in ax)
     amax = sum(a["a"] for a in ax)
-    ini = f"""[EMC]
-VERSION = 1.1
-MACHINE = dtis-reference
-[DISPLAY]
-DISPLAY = {driver}
-[TASK]
-TASK = milltask
-CYCLE_TIME = 0.001
-[RS274NGC]
-PARAMETER_FILE = {folder}/sim.var
-[EMCIO]
-EMCIO = io
-CYCLE_TIME = 0.100
-TOOL_TABLE = {folder}/tool.tbl
-[EMCMOT]
-EMCMOT = motmod
-COMM_TIMEOUT = 1.0
-SERVO_PERIOD = 1000000
-[HAL]
-HALFILE = {folder}/machine.hal
-[TRAJ]
+    ini = ini_head("dtis-reference", driver, folder, [folder / "machine.hal"]) + f"""[TRAJ]
 COORDINATES = XYZ
 LINEAR_UNITS = mm
 ANGULAR_UNITS = degree
