@@ -95,6 +95,32 @@ TEST(Stream, EqualsTheRunWithTheSameHorizon) {
     }
 }
 
+// A six-joint arm streams as a mill does: the open pocket on the RX170B (joint positions per
+// period) gives the rows the run plans, bit for bit, and an abort half way ends at rest within
+// the joints' limits.
+TEST(Stream, AnArmStreamsAsTheRunPlansAndStopsAtRest) {
+  const io::Job job = SampleJob("open_pocket_rx170b");
+  const io::RunResult run = io::RunJob(job);
+  ASSERT_EQ(run.machine->AxisCount(), 6);
+  Capture out(run.machine->AxisCount());
+  const io::StreamResult r = StreamJob(job, *run.machine, &out);
+  EXPECT_EQ(r.end, io::StreamEnd::kComplete);
+  ASSERT_EQ(out.rows.size(), run.table.Rows());
+  EXPECT_TRUE(out.rows == RowsOf(run.table));
+  EXPECT_TRUE(r.verify.Passed());
+  const long half = static_cast<long>(run.table.Rows() / 2);
+  Capture cut(run.machine->AxisCount());
+  io::Stream* stream = nullptr;
+  cut.on_row = [&](long rows) {
+    if (rows == half) stream->Abort();
+  };
+  const io::StreamResult a = StreamJob(job, *run.machine, &cut, {}, &stream);
+  EXPECT_EQ(a.end, io::StreamEnd::kAborted);
+  EXPECT_GT(a.stop_rows, 2);
+  EXPECT_TRUE(a.verify.Passed()) << interp::FormatReport(a.verify);
+  EXPECT_TRUE(a.verify.ends_at_rest);
+}
+
 // A flat end riding over the valleys of a wavy face (strategies::SurfacePass::
 // RidesOverFromPrevious) streams as the run plans it: the passes are joined by the same straight
 // moves, not linked.
