@@ -264,6 +264,7 @@ int Run(const RunArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
+    in.pass_rows = result.pass_rows;
     in.unreachable = result.unreachable_all;
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
     if (html->InPlace()) html->Commit();
@@ -324,6 +325,7 @@ int Compare(const CompareArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;
+    in.pass_rows = exact.pass_rows;
     in.compare = &result;
     in.shown = dtis::io::VariantLabel(exact);
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
@@ -878,9 +880,15 @@ int main(int argc, char** argv) {
   figures->add_option("--format", fo.formats, "comma-separated: png, svg, jpeg, webp")
       ->delimiter(',')
       ->capture_default_str();
-  figures->add_option("--width", fo.width_px, "figure width, pixels (heights as in the report)")
+  figures
+      ->add_option("--width-mm", fo.width_mm,
+                   "print width of every figure, mm (88: a column of a two-column paper, 180: a "
+                   "page); heights follow each plot, text is 7 to 8 pt")
       ->capture_default_str()
-      ->check(CLI::Range(200, 8000));
+      ->check(CLI::Range(40.0, 500.0));
+  figures->add_option("--dpi", fo.dpi, "resolution of the PNGs, dots per inch (written in them)")
+      ->capture_default_str()
+      ->check(CLI::Range(72, 1200));
   figures->add_flag("-q,--quiet", figures_quiet, "print nothing on success");
 
   auto* stream = app.add_subcommand(

@@ -34,6 +34,9 @@ struct ReportInput {
   double programmed_feed_mm_min = 0.0;      // 0: not known
   double compute_s = -1.0;                  // < 0: not known
   int passes = 0;                           // surface jobs
+  // Surface jobs: the rows [first, end) of `table` on each pass (RunResult::pass_rows); the feed
+  // is then drawn against the arc length along the passes, links left out. Empty: against time.
+  std::vector<std::pair<long, long>> pass_rows;
   // Surface jobs: every stretch the passes left out where the tool does not fit, a line each
   // (RunResult::unreachable_all), listed whole under the summary; "" for none.
   std::string unreachable;
@@ -47,6 +50,8 @@ struct ReportInput {
 
 // Time-series points shown per plot (min and max of each of half as many buckets).
 inline constexpr std::size_t kReportPoints = 4000;
+// An axis is at a limit in a period where |value| is at least this share of the limit.
+inline constexpr double kAtLimit = 0.99;
 
 // The indices of `values` to draw at most `points` of them: the first and last, and in each of
 // points / 2 equal buckets the rows of the smallest and the largest value, in order.
