@@ -94,7 +94,10 @@ check_without_webgl() {
   grep -q "WebGL is not supported" < <(perl -0pe 's/<script.*?<\/script>//gs' "$work/$name.nogl.dom") &&
     problem="$problem; the page says WebGL is not supported"
   body=$(grep -o '<body[^>]*>' "$work/$name.dom")
-  grep -q "data-drawn2d=\"$((want_plots - 1))\"" <<<"$body" ||
+  # With WebGL the path is 3-D unless it lies in a plane.
+  local flat=0
+  grep -q 'data-path3d="no"' <<<"$body" && flat=1
+  grep -q "data-drawn2d=\"$((want_plots - 1 + flat))\"" <<<"$body" ||
     problem="$problem; with WebGL, not every 2-D plot drawn in SVG: $body"
   grep -qF "|dtis|$("$dtis" --version | cut -d' ' -f2)|" "$work/$name.text" ||
     problem="$problem; no dtis version in its header"

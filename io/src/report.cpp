@@ -416,9 +416,15 @@ function pathTop(print, width) {
   const plotW = width * 0.8 - layout.margin.l, h = Math.min(1.2 * width, Math.max(0.45 * width, aspect * plotW + layout.margin.t + layout.margin.b));
   return { data, layout, height: Math.round(print ? h : Math.min(700, Math.max(400, h))) };
 }
+// A path in a plane z = constant (most G-code and curves) reads best from above.
+function flatPath() {
+  const p = DATA.path, span = a => maxOf(a) - minOf(a);
+  return !DATA.surface && !p.axis && span(p.z) <= 0.01 * Math.max(span(p.x), span(p.y));
+}
+const path3d = () => hasWebGL() && !flatPath();
 function pathPlot(print, width) {
   const p = DATA.path;
-  if (!hasWebGL()) return pathTop(print, width);
+  if (!path3d()) return pathTop(print, width);
   const data = [];
   if (DATA.surface) { const f = DATA.surface; data.push({ type: 'mesh3d', name: 'surface', x: f.x, y: f.y, z: f.z, i: f.i, j: f.j, k: f.k,
     color: '#c9ced6', opacity: 0.7, flatshading: false, hoverinfo: 'skip', lighting: { ambient: 0.75, diffuse: 0.45, specular: 0.05 } }); }
@@ -428,8 +434,18 @@ function pathPlot(print, width) {
     line: { width: print ? 1 : 2, color: '#555' }, hoverinfo: 'skip' });
   const layout = baseLayout(print, { t: 0, l: 0, r: 0, b: 0 });
   const title = text => ({ title: { text }, tickfont: { size: print ? PRINT_FONT - 2 : SCREEN_FONT - 1 } });
-  layout.scene = { aspectmode: 'data', camera: { eye: print ? { x: 1.1, y: 1.1, z: 0.85 } : { x: 1.3, y: 1.3, z: 1.0 } },
-    xaxis: title('x (mm)'), yaxis: title('y (mm)'), zaxis: title('z (mm)') };
+  // True proportions in a box whose longest side is 1, so the camera sees all of a long, thin path
+  // (plotly's 'data' aspect scales the box to a unit volume instead).
+  const pts = k => [p, DATA.surface, p.axis].filter(Boolean).flatMap(o => o[k].filter(v => v !== null));
+  const lo = ['x', 'y', 'z'].map(k => minOf(pts(k))), hi = ['x', 'y', 'z'].map(k => maxOf(pts(k)));
+  const longest = Math.max(1e-9, ...hi.map((h, i) => h - lo[i])), pad = 0.02 * longest;
+  const side = i => Math.max(hi[i] - lo[i] + 2 * pad, 1e-3 * longest) / (longest + 2 * pad);
+  const axis3 = (i, text) => Object.assign(title(text), { range: [lo[i] - pad, hi[i] + pad] });
+  // The camera as far from a thin box as from a cube of its diagonal.
+  const near = Math.max(0.55, Math.hypot(side(0), side(1), side(2)) / Math.sqrt(3)) * (print ? 1.15 : 1.3);
+  layout.scene = { aspectmode: 'manual', aspectratio: { x: side(0), y: side(1), z: side(2) },
+    camera: { eye: { x: near, y: near, z: 0.75 * near } },
+    xaxis: axis3(0, 'x (mm)'), yaxis: axis3(1, 'y (mm)'), zaxis: axis3(2, 'z (mm)') };
   if (print) layout.scene.domain = { x: [0, 0.85], y: [0, 1] };
   return { data, layout, height: print ? Math.round(width * 0.8) : 600 };
 }
@@ -613,8 +629,9 @@ const wanted = new URLSearchParams(location.hash.slice(1));
 summary();
 compareSection();
 PLOTS.push({ name: 'path', div: 'path', build: pathPlot });
-PLOTS.push({ name: 'path-top', build: pathTop, printOnly: true });
-if (!hasWebGL()) document.getElementById('path-title').textContent = 'Tool path from above, coloured by feed (the 3-D view needs WebGL, which this browser does not offer)';
+if (path3d()) PLOTS.push({ name: 'path-top', build: pathTop, printOnly: true });
+if (flatPath()) document.getElementById('path-title').textContent = 'Tool path from above (it lies in a plane), coloured by feed';
+else if (!hasWebGL()) document.getElementById('path-title').textContent = 'Tool path from above, coloured by feed (the 3-D view needs WebGL, which this browser does not offer)';
 feedSection();
 PLOTS.push({ name: 'usage', div: 'usage', build: usagePlot });
 axesSection();
@@ -629,6 +646,7 @@ Promise.all(PLOTS.filter(p => !p.printOnly && (!p.raw || raw.open)).map(draw)).t
   document.body.dataset.drawn2d = plots.filter(p => p.querySelector('.cartesianlayer') &&
     p.querySelectorAll('.scatterlayer .trace, .barlayer .trace').length === p.data.length).length;
   document.body.dataset.webgl = hasWebGL() ? 'yes' : 'no';
+  document.body.dataset.path3d = path3d() ? 'yes' : 'no';
   document.body.dataset.colorbars = document.querySelectorAll('#path .colorbar').length;
   document.body.dataset.legendOverToolbar = plots.filter(legendOverToolbar).length;
   if (wanted.has('figures')) {
