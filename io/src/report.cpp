@@ -321,8 +321,8 @@ function compareFeed(print, width) {
   const variants = [...new Set(feeds.map(f => f.variant))], planners = [...new Set(feeds.map(f => f.planner))];
   const rows = print ? variants.length : planners.length, cols = print ? planners.length : variants.length;
   const cell = (r, col) => print ? [variants[r], planners[col]] : [variants[col], planners[r]];
-  const t1 = maxOf(feeds.map(f => maxOf(f.t))), f1 = (print ? 1.3 : 1.06) * maxOf(feeds.map(f => maxOf(f.y)));
-  const layout = baseLayout(print, { t: print ? 16 : 40, l: print ? 40 : 90 }), data = [], annotations = [];
+  const t1 = maxOf(feeds.map(f => maxOf(f.t))), f1 = (print ? 1.6 : 1.06) * maxOf(feeds.map(f => maxOf(f.y)));
+  const layout = baseLayout(print, { t: print ? 16 : 40, l: print ? 54 : 90 }), data = [], annotations = [];
   const gx = print ? 0.04 : 0.025, gy = print ? 0.06 : 0.12;
   for (let r = 0; r < rows; ++r) for (let col = 0; col < cols; ++col) {
     const [variant, planner] = cell(r, col), k = r * cols + col + 1, xa = 'x' + (k > 1 ? k : ''), ya = 'y' + (k > 1 ? k : '');
@@ -341,11 +341,11 @@ function compareFeed(print, width) {
     const yTitle = print ? (r === Math.floor(rows / 2) ? 'feed (mm/min)' : '') : planner + '<br>feed (mm/min)';
     layout['yaxis' + (k > 1 ? k : '')] = Object.assign({}, grid, { domain: [y0, y1], range: [0, f1], anchor: xa, matches: k > 1 ? 'y' : undefined,
       showticklabels: col === 0, title: col === 0 ? axisTitle(yTitle) : undefined });
-    if (print) annotations.push({ text: variant, xref: xa + ' domain', yref: ya + ' domain', x: 0.02, y: 1, xanchor: 'left', yanchor: 'top',
-      showarrow: false, font: { size: PRINT_FONT - 1 } });
+    if (print && f) annotations.push({ text: variant + '<br>' + f.time_s.toFixed(2) + ' s', xref: xa + ' domain', yref: ya + ' domain', x: 1, y: 1,
+      xanchor: 'right', yanchor: 'top', align: 'right', showarrow: false, font: { size: PRINT_FONT - 1 } });
     if (r === 0) annotations.push({ text: print ? planner : variant, xref: 'paper', yref: 'paper', x: (x0 + x1) / 2, y: 1, yanchor: 'bottom', showarrow: false,
       font: { size: (print ? PRINT_FONT : SCREEN_FONT) } });
-    if (f) annotations.push({ text: f.time_s.toFixed(2) + ' s', xref: xa + ' domain', yref: ya + ' domain', x: 0.98, y: print ? 1 : 0.96, xanchor: 'right', yanchor: 'top',
+    if (f && !print) annotations.push({ text: f.time_s.toFixed(2) + ' s', xref: xa + ' domain', yref: ya + ' domain', x: 0.98, y: print ? 1 : 0.96, xanchor: 'right', yanchor: 'top',
       showarrow: false, font: { size: (print ? PRINT_FONT : SCREEN_FONT) - 1, color: '#555' } });
   }
   layout.annotations = annotations;
@@ -558,7 +558,7 @@ function axisPlot(a, print, width) {
     }
     const pad = 0.06 * Math.max(hi - lo, 1e-9);
     layout['yaxis' + (k ? k + 1 : '')] = Object.assign({}, grid, { domain: [1 - (k + 1) * h - k * gap, 1 - k * (h + gap)], range: [lo - pad, hi + pad],
-      title: axisTitle(names[k] + '<br>(' + units[k] + ')'), zeroline: true, zerolinecolor: '#ccc' });
+      title: axisTitle(print ? (k ? 'vaj'[k - 1] : a.name) + ' (' + units[k] + ')' : names[k] + '<br>(' + units[k] + ')'), automargin: true, zeroline: true, zerolinecolor: '#ccc' });
   }
   layout.xaxis = Object.assign({}, grid, { title: axisTitle('t (s)'), anchor: 'y4' });
   if (!print) layout.title = { text: 'axis ' + a.name + (a.vmax ? '; limits ±' + [a.vmax, a.amax, a.jmax].map(v => +v.toPrecision(4)).join(', ±') : ''), x: 0, font: { size: SCREEN_FONT + 1 } };

@@ -28,7 +28,7 @@ done
   >/dev/null
 shoot "$work/compare.html" "$out/report_compare.png" 2000
 # The raw values, jerk band included, of the 5-axis run.
-shoot "$work/surface_tilt10_xyzac.html#raw" "$out/report_surface_tilt10_xyzac_raw.png" 4800
+shoot "$work/surface_tilt10_xyzac.html#raw" "$out/report_surface_tilt10_xyzac_raw.png" 4000
 for name in surface_tilt10_xyzac compare; do
   "$dtis" figures "$work/$name.html" -o "$out/figures_$name" --dpi 150 -q
   echo "$out/figures_$name"
