@@ -256,7 +256,7 @@ details > summary { cursor: pointer; font-weight: bold; margin: 1.2em 0 0.3em; }
 <p class="note" id="feed-note"></p>
 <div id="feed" class="plot"></div>
 <h2>How close each axis comes to its limits</h2>
-<p class="note">|value| / limit per axis, the largest in each window of @WINDOW@ periods; the table above gives the share of periods at the limit (at least @AT_LIMIT@ % of it).</p>
+<p class="note">|value| / limit per axis, the largest in each window of @WINDOW@ periods, and the share of periods each axis spends at the limit (at least @AT_LIMIT@ % of it).</p>
 <div id="usage" class="plot"></div>
 <details id="raw"><summary>Each axis' position, velocity, acceleration and jerk</summary>
 <p class="note">Jerk: the band between the smallest and the largest in each window of @WINDOW@ periods, and its mean. Limits are drawn where the values come near them.</p>
@@ -509,7 +509,7 @@ function feedSection() {
 const DERIVATIVES = [['velocity', 'v'], ['acceleration', 'a'], ['jerk', 'j']];
 // |value| / limit, 0 to 100 %, one panel per derivative, every axis in each.
 function usagePlot(print, width) {
-  const data = [], layout = baseLayout(print, { t: print ? 22 : 40 }), gap = print ? 0.07 : 0.06, h = (1 - 2 * gap) / 3;
+  const data = [], layout = baseLayout(print, { t: print ? 22 : 40 }), gap = print ? 0.07 : 0.06, h = (1 - 2 * gap) / 3, annotations = [];
   layout.showlegend = true;
   layout.legend = topLegend(print);
   DERIVATIVES.forEach(([name, short], d) => {
@@ -521,11 +521,17 @@ function usagePlot(print, width) {
         hovertemplate: a.name + ' ' + name + ' %{y:.1f} % of its limit at t %{x:.3f} s<br>at the limit ' + pct(a.at_limit[d]) + ' of the periods<extra></extra>' });
     });
     const y1 = 1 - d * (h + gap), y0 = y1 - h;
-    layout['yaxis' + (d ? d + 1 : '')] = Object.assign({}, grid, { domain: [y0, y1], range: [0, 105], tickvals: [0, 50, 100], anchor: xa,
+    // The share of periods each axis spends at this limit, largest first.
+    const shares = DATA.axes.map(a => [a.name, a.at_limit[d]]).filter(([, v]) => v >= 0.05).sort((p, q) => q[1] - p[1]);
+    annotations.push({ text: 'periods at the limit: ' + (shares.length ? shares.map(([n, v]) => n + ' ' + pct(v)).join(', ') : 'none'),
+      xref: xa + ' domain', yref: ya + ' domain', x: 1, y: 1, xanchor: 'right', yanchor: 'top', showarrow: false,
+      bgcolor: 'rgba(255, 255, 255, 0.8)', font: { size: (print ? PRINT_FONT : SCREEN_FONT) - 1, color: '#444' } });
+    layout['yaxis' + (d ? d + 1 : '')] = Object.assign({}, grid, { domain: [y0, y1], range: [0, 130], tickvals: [0, 50, 100], anchor: xa,
       title: axisTitle('|' + short + '| / ' + short + '<sub>max</sub> (%)') });
     layout['xaxis' + (d ? d + 1 : '')] = Object.assign({}, grid, { anchor: ya, matches: d ? 'x' : undefined, showticklabels: d === 2,
       title: d === 2 ? axisTitle('t (s)') : undefined });
   });
+  layout.annotations = annotations;
   return { data, layout, height: print ? Math.round(width * 0.95) : 560 };
 }
 // One axis' values: position, velocity, acceleration, and the jerk as a band (the smallest and the

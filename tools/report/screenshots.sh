@@ -22,7 +22,7 @@ shoot() {  # html png height
 for job in "$root"/samples/jobs/*.toml; do
   name=$(basename "$job" .toml)
   "$dtis" run "$job" -o "$work/$name.csv" --report "$work/$name.html" -q || continue
-  shoot "$work/$name.html" "$out/report_$name.png" 2500
+  shoot "$work/$name.html" "$out/report_$name.png" 2350
 done
 "$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" --report "$work/compare.html" -q \
   >/dev/null
