@@ -869,8 +869,9 @@ int main(int argc, char** argv) {
 
   auto* figures = app.add_subcommand(
       "figures",
-      "Draw every plot of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
-      "files for papers, with headless Chromium: the same plots, drawn by the same plotly.js.");
+      "Draw the figures of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
+      "files at print size for papers, with headless Chromium: the report's plots, laid out for a "
+      "column (or --width-mm) by the same plotly.js.");
   std::string figures_report, figures_dir;
   dtis::io::FigureOptions fo;
   bool figures_quiet = false;

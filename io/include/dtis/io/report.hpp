@@ -1,6 +1,8 @@
-// A run as one self-contained HTML file: the tool path coloured by feed, feed against
-// time with the programmed feed and the constraint that decided each period, every axis'
-// position, velocity, acceleration and jerk against its limits, and the verifier's summary.
+// A run as one self-contained HTML file: the tool path coloured by feed, the feed (along a surface
+// job's passes, else against time) with the programmed feed and the constraint that decided each
+// period, how close every axis comes to each limit (|value| / limit in %, and the share of periods
+// at it), every axis' position, velocity, acceleration and jerk on demand, and the verifier's
+// summary. Every plot is built for the page and, for `dtis figures`, for print.
 // plotly.js is embedded at report time, so the file opens offline. Long runs are decimated for
 // display without hiding peaks: each pixel-wide bucket of a time series keeps its min and max.
 #pragma once
