@@ -890,6 +890,11 @@ int main(int argc, char** argv) {
   figures->add_option("--dpi", fo.dpi, "resolution of the PNGs, dots per inch (written in them)")
       ->capture_default_str()
       ->check(CLI::Range(72, 1200));
+  figures
+      ->add_option("--pass", fo.pass,
+                   "a surface job's feed figure shows this pass alone (1: the first; the report's "
+                   "selector does the same)")
+      ->check(CLI::PositiveNumber);
   figures->add_flag("-q,--quiet", figures_quiet, "print nothing on success");
 
   auto* stream = app.add_subcommand(

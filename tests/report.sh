@@ -134,6 +134,17 @@ for job in "$root"/samples/jobs/*.toml; do
 
 done
 
+# One pass of the 39 of the 3-axis surface job (#pass=2, as the report's selector and dtis figures
+# --pass show it): the feed's axis spans that pass' arc lengths.
+browse --dump-dom "file://$work/surface_plane_cl_3axis.html#pass=2" 2>/dev/null >"$work/pass.dom"
+range=$(grep -o '<body[^>]*>' "$work/pass.dom" | sed -n 's/.*data-feed-range="\([^"]*\)".*/\1/p')
+if [[ $range =~ ^([0-9.]+,[0-9.]+)\ of\ ([0-9.]+,[0-9.]+)$ ]] && [ "${BASH_REMATCH[1]}" = "${BASH_REMATCH[2]}" ]; then
+  echo "ok pass 2 alone: arc lengths ${BASH_REMATCH[1]} mm"
+else
+  echo "FAIL pass 2 alone: the feed's axis is '$range'"
+  failures=$((failures + 1))
+fi
+
 # The 5-axis surface job three more ways.
 job=$root/samples/jobs/surface_tilt10_xyzac.toml
 machine=$(machine_of "$job")

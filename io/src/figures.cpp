@@ -308,7 +308,8 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
   const fs::path dom = temp.Path() / "dom.html", log = temp.Path() / "browser.log";
   const std::string url = "file://" + fs::absolute(report_html).lexically_normal().string() +
                           "#figures=" + formats +
-                          fmt::format("&width_mm={:g}&dpi={}", options.width_mm, options.dpi);
+                          fmt::format("&width_mm={:g}&dpi={}", options.width_mm, options.dpi) +
+                          (options.pass > 0 ? fmt::format("&pass={}", options.pass) : "");
   const std::vector<std::string> argv = {browser,
                                          "--headless",
                                          "--no-sandbox",

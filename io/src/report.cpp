@@ -466,6 +466,7 @@ function feedPlot(print, width) {
   layout.showlegend = true;
   layout.legend = topLegend(print);
   layout.xaxis = Object.assign({}, grid, { title: axisTitle(along ? 'arc length along the passes (mm)' : 't (s)'), anchor: band.x.length ? 'y2' : 'y' });
+  if (along && feedRange) layout.xaxis.range = feedRange;
   layout.yaxis = Object.assign({}, grid, { title: axisTitle('feed (mm/min)'), domain: band.x.length ? [split + 0.06, 1] : [0, 1], rangemode: 'tozero' });
   layout.yaxis2 = Object.assign({}, grid, { domain: [0, split], type: 'category', categoryorder: 'array', categoryarray: labels,
     automargin: true, tickfont: { size: print ? PRINT_FONT - 2 : SCREEN_FONT - 1 }, showgrid: false, range: [-0.6, labels.length - 0.4],
@@ -475,12 +476,18 @@ function feedPlot(print, width) {
     const passes = along.passes, every = Math.max(1, Math.ceil(passes.length / (print ? 12 : 40)));
     layout.shapes = passes.slice(1).map(p => ({ type: 'line', xref: 'x', yref: 'paper', x0: p.s0, x1: p.s0, y0: 0, y1: 1,
       line: { color: '#999', width: 0.6, dash: 'dot' } }));
-    layout.annotations = passes.map((p, k) => ({ k, p })).filter(({ k }) => k % every === 0 || passes.length < 2).map(({ k, p }) => ({
+    layout.annotations = passes.map((p, k) => ({ k, p })).filter(({ k, p }) => k % every === 0 || passes.length < 2 || (feedRange && p.s0 === feedRange[0])).map(({ k, p }) => ({
       text: String(k + 1), x: (p.s0 + p.s1) / 2, xref: 'x', y: 1, yref: 'paper', yanchor: 'bottom', showarrow: false,
       font: { size: (print ? PRINT_FONT : SCREEN_FONT) - 2, color: '#666' } }));
     if (passes.length > 1) layout.legend.x = 0.0, layout.legend.y = 1.06;
   }
   return { data, layout, height };
+}
+// The arc lengths one pass spans (k from 0), or null for every pass.
+let feedRange = null;
+function passRange(k) {
+  const p = DATA.pass_feed && k !== '' ? DATA.pass_feed.passes[+k] : undefined;
+  return p ? [p.s0, p.s1] : null;
 }
 function feedSection() {
   const along = DATA.pass_feed;
@@ -496,9 +503,14 @@ function feedSection() {
       select.appendChild(new Option('every pass', ''));
       along.passes.forEach((p, k) => select.appendChild(new Option('pass ' + (k + 1) + ' (' + (p.t1 - p.t0).toFixed(3) + ' s, ' + (p.s1 - p.s0).toFixed(1) + ' mm)', k)));
       select.addEventListener('change', () => {
-        const p = along.passes[select.value];
-        Plotly.relayout('feed', p ? { 'xaxis.range': [p.s0, p.s1] } : { 'xaxis.autorange': true });
+        feedRange = passRange(select.value);
+        Plotly.relayout('feed', feedRange ? { 'xaxis.range': feedRange } : { 'xaxis.autorange': true });
       });
+      // #pass=N in the address shows pass N (and draws its figure so: dtis figures --pass N).
+      if (wanted.has('pass')) {
+        select.value = String(+wanted.get('pass') - 1);
+        feedRange = passRange(select.value);
+      }
       const label = document.createElement('label');
       label.append('Show: ', select);
       note.appendChild(label);
@@ -653,6 +665,8 @@ Promise.all(PLOTS.filter(p => !p.printOnly && (!p.raw || raw.open)).map(draw)).t
     p.querySelectorAll('.scatterlayer .trace, .barlayer .trace').length === p.data.length).length;
   document.body.dataset.webgl = hasWebGL() ? 'yes' : 'no';
   document.body.dataset.path3d = path3d() ? 'yes' : 'no';
+  const feedDiv = document.getElementById('feed');
+  if (feedRange) document.body.dataset.feedRange = feedDiv.layout.xaxis.range.map(v => v.toFixed(6)) + ' of ' + feedRange.map(v => v.toFixed(6));
   document.body.dataset.colorbars = document.querySelectorAll('#path .colorbar').length;
   document.body.dataset.legendOverToolbar = plots.filter(legendOverToolbar).length;
   if (wanted.has('figures')) {

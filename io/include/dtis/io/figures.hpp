@@ -19,6 +19,7 @@ struct FigureOptions {
   // `dpi` and say so (pHYs), SVGs carry their size in mm.
   double width_mm = 88.0;
   int dpi = 300;
+  int pass = 0;  // > 0: the feed figure shows this pass alone (surface jobs), 1 the first
   // The browser: "" for $DTIS_CHROMIUM, else chromium (or chromium-browser, google-chrome) on PATH.
   std::string browser;
   double timeout_s = 300.0;  // wall clock for the browser
