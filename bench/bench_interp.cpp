@@ -185,6 +185,8 @@ DTIS_PLANNERS_ONCE(SurfacePlanner, tilt10_singular, "samples/jobs/surface_tilt10
 DTIS_PLANNERS_ONCE(SurfacePlanner, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.toml");
 // A trimmed rational face of a real part: passes end on its trimming loops.
 DTIS_PLANNERS_ONCE(SurfacePlanner, trimmed_face, "bench/jobs/trimmed_face.toml");
+// A 5-axis pass over a cubic face, its axis smoothed within 0.09 deg.
+DTIS_PLANNERS(SurfacePlanner, cubic_wave_xyzac, "samples/jobs/surface_cubic_wave_xyzac.toml");
 
 // A whole trimmed B-spline face with holes: a wavy ruled face 60 x 60 mm (waves of 3 mm over
 // 30 mm) with two round holes of 6 mm radius, made here and written with a plane_cl job (1 mm
@@ -211,6 +213,16 @@ BENCHMARK_CAPTURE(Surface, plane_cl_3axis, "samples/jobs/surface_plane_cl_3axis.
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->Iterations(1);
+// A 5-axis pass over a cubic face, its axis smoothed within 0.09 deg: the law's fit is part of
+// building the passes.
+BENCHMARK_CAPTURE(Surface, cubic_wave_xyzac, "samples/jobs/surface_cubic_wave_xyzac.toml")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(SurfacePlan, cubic_wave_xyzac, "samples/jobs/surface_cubic_wave_xyzac.toml")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(SurfacePlan, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
     ->Arg(1)
     ->Arg(2)

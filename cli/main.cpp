@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -318,10 +319,12 @@ int Compare(const CompareArgs& a) {
   if (!a.csv.empty()) csv.emplace(a.csv).Write(dtis::io::FormatCompareCsv(result));
   if (!a.markdown.empty()) md.emplace(a.markdown).Write(dtis::io::FormatCompareMarkdown(result));
   if (!a.report.empty()) {
-    // The comparison on top; below it, the exact-surface variant's full report.
+    // The comparison on top; below it, the full report of the exact-surface variant with the
+    // job's own axis.
     const auto machine = dtis::io::LoadJobMachine(job);
-    const dtis::io::VariantResult& exact =
-        dtis::io::ExactVariantOf(result, options.planners.front());
+    const dtis::io::VariantResult& exact = dtis::io::ExactVariantOf(
+        result, options.planners.front(),
+        job.surface->orientation.axis_tolerance_rad * 180.0 / std::numbers::pi);
     dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;

@@ -3,9 +3,6 @@
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <Geom_BSplineCurve.hxx>
-#include <Message.hxx>
-#include <Message_Messenger.hxx>
-#include <STEPControl_Writer.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
@@ -13,6 +10,8 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+
+#include "parts.hpp"
 
 namespace dtis::test {
 
@@ -48,14 +47,7 @@ TopoDS_Face WavyRuledFace() {
 }
 
 void WriteStep(const TopoDS_Shape& shape, const std::string& path) {
-  const Handle(Message_Messenger) messenger = Message::DefaultMessenger();
-  const Message_SequenceOfPrinters printers = messenger->Printers();
-  messenger->ChangePrinters().Clear();
-  STEPControl_Writer writer;
-  const bool written = writer.Transfer(shape, STEPControl_AsIs) == IFSelect_RetDone &&
-                       writer.Write(path.c_str()) == IFSelect_RetDone;
-  messenger->ChangePrinters() = printers;
-  if (!written) throw std::runtime_error("could not write " + path);
+  parts::WriteStep(shape, path);
 }
 
 }  // namespace dtis::test

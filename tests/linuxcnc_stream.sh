@@ -12,7 +12,9 @@
 # streamer's FIFO itself: HAL's samples, read at full precision, equal the plan exactly and pass
 # `dtis verify` themselves, for a whole job and for one killed mid-pass.
 # Usage: linuxcnc_stream.sh DTIS ROOT [OUTDIR [HAL_CAPTURE]]  (OUTDIR keeps the recordings; "" or
-# none: a temp dir)
+# none: a temp dir). STREAM_JOB and STREAM_MACHINE name another job and its machine (the serial
+# arm's open pocket: six joints streamed), STREAM_BUFFER the periods kept ahead (default 200; the
+# arm's planner runs at a few times real time only, and backs off in bursts).
 set -euo pipefail
 dtis=$1
 root=$2
@@ -20,8 +22,8 @@ keep=${3:-}
 out=${3:-$(mktemp -d)}
 capture=${4:-}
 mkdir -p "$out"
-job=$root/samples/jobs/surface_tilt10_xyzac.toml
-machine=$root/samples/machines/mikron_ucp710_xyzac.toml
+job=${STREAM_JOB:-$root/samples/jobs/surface_tilt10_xyzac.toml}
+machine=${STREAM_MACHINE:-$root/samples/machines/mikron_ucp710_xyzac.toml}
 horizon=256
 
 # LinuxCNC 2.9 from Debian, without the RT kernel and GUIs it recommends.
@@ -157,8 +159,10 @@ stream_job() {  # name, dtis stream arguments...
     streamer=$!
     to=$out/fifo
   fi
+  local buffer=(--buffer "${STREAM_BUFFER:-200}")
+  [[ " $* " != *" --buffer "* ]] || buffer=()
   timeout 120 "$dtis" stream "$job" --horizon $horizon --index --pace realtime --to "$to" \
-    --record "$out/$name.csv" "$@" 2>"$out/$name.log" &
+    --record "$out/$name.csv" "${buffer[@]}" "$@" 2>"$out/$name.log" &
   local pid=$!
   if [ -n "${KILL_AFTER:-}" ]; then
     sleep "$KILL_AFTER"

@@ -68,12 +68,12 @@ echo "surface job: byte-identical with 1 and 2 threads"
 # verifies (exit 0), and the tables and exports are written.
 "$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" -q --csv "$out/cmp.csv" \
   --markdown "$out/cmp.md" --exports "$out/exports"
-test "$(wc -l < "$out/cmp.csv")" -eq 11
-test "$(grep -c ',vpop,' "$out/cmp.csv")" -eq 5
-test "$(grep -c ',lookahead,' "$out/cmp.csv")" -eq 5
+test "$(wc -l < "$out/cmp.csv")" -eq 13
+test "$(grep -c ',vpop,' "$out/cmp.csv")" -eq 6
+test "$(grep -c ',lookahead,' "$out/cmp.csv")" -eq 6
 "$dtis" compare "$root/samples/jobs/surface_tilt10_xyzac.toml" -q --planner lookahead \
   --csv "$out/cmp1.csv"
-test "$(wc -l < "$out/cmp1.csv")" -eq 6
+test "$(wc -l < "$out/cmp1.csv")" -eq 7
 test -s "$out/exports/surface_tilt10_xyzac_g1_1um.ngc"
 test -s "$out/exports/surface_tilt10_xyzac_bspline_1um.mpf"
 echo "compare: ok"

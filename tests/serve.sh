@@ -148,9 +148,11 @@ wait_for '"state":"held".*"id":1,"job":"[^"]*","end":"aborted"'
 "$dtis" verify "$out/u/job-1.csv" "$machine" >/dev/null
 at_rest "$out/u/job-1.csv"
 
-# ---- a program that never ends is refused at submit within 5 s (its moves pass the 24 h a job may
-# take), status answering meanwhile; one that loops without a move is read until shutdown, which
-# cancels it at once; neither delays another job's submit.
+# ---- a program that never ends is refused at submit (its moves pass the 24 h a job may take),
+# status answering meanwhile; one that loops without a move is read until shutdown, which cancels
+# it at once; neither delays another job's submit. The bounds tell bounded from stuck, with room
+# for a loaded machine (idle: 0.5 s to refuse, a few ms to shut down; under a load of 8 on 2
+# cores the refusal took 5.9 s).
 printf '%s\n' 'G21 G90 G94' 'G0 X0 Y0 Z5' 'G1 Z0 F1000' 'o100 while [1]' 'G1 X10 F1000' 'G1 X0' \
   'o100 endwhile' 'M2' >"$out/endless.ngc"
 printf '%s\n' 'G21 G90 G94' 'G0 X0 Y0 Z5' '#1 = 0' 'o100 while [1]' '#1 = [#1 + 1]' 'o100 endwhile' \
@@ -176,22 +178,22 @@ ms=$((($(date +%s%N) - t0) / 1000000))
 test "$rc" = 1 || { echo "the endless program's submit exited $rc: $(cat "$out/endless.reply")" >&2; exit 1; }
 grep -q '"ok":false' "$out/endless.reply"
 grep -qF "$out/endless.ngc" "$out/endless.reply"
-((ms <= 5000)) || { echo "refusing the endless program took $ms ms" >&2; exit 1; }
+((ms <= 30000)) || { echo "refusing the endless program took $ms ms" >&2; exit 1; }
 worst=$(printf '%s\n' "${status_ms[@]:-0}" | sort -n | tail -1)
 echo "serve: endless program refused at submit in $ms ms, ${#status_ms[@]} status requests answered meanwhile (slowest $worst ms): $(grep -o '"error":"[^"]*' "$out/endless.reply" | cut -c10-)"
 send "{\"cmd\":\"submit\",\"job\":\"$idle_loop\"}" >"$out/idle_loop.reply" 2>&1 &
 idle_send=$!
 pids+=("$idle_send")
-wait_for '"validating":1' 5
+wait_for '"validating":1' 20
 t0=$SECONDS
 send "{\"cmd\":\"submit\",\"job\":\"$line\"}" | grep -q '"ok":true'  # not behind the loop
-((SECONDS - t0 <= 2)) || { echo "a submit waited $((SECONDS - t0)) s behind a program being read" >&2; exit 1; }
+((SECONDS - t0 <= 10)) || { echo "a submit waited $((SECONDS - t0)) s behind a program being read" >&2; exit 1; }
 send '{"cmd":"status"}' | grep -q '"queue":\[{"id":2.*"validating":1'
 t0=$(date +%s%N)
 send '{"cmd":"shutdown"}' | grep -q '"ok":true'
 wait "$daemon"
 ms=$((($(date +%s%N) - t0) / 1000000))
-((ms <= 2000)) || { echo "shutdown took $ms ms with a program being read" >&2; exit 1; }
+((ms <= 10000)) || { echo "shutdown took $ms ms with a program being read" >&2; exit 1; }
 test ! -e "$out/u.sock"
 wait "$idle_send" || true
 grep -q '"ok":false' "$out/idle_loop.reply"
@@ -356,14 +358,18 @@ for sig in TERM INT HUP $fatal_signals; do
     2>"$out/sig_stream.log" &
   pid=$!
   pids+=("$pid")
-  sleep 0.5
+  sleep 1
   kill -s "$sig" "$pid"
   rc=0
   wait "$pid" || rc=$?
   problem=""
   test "$rc" = 5 || problem="exit $rc, expected 5"
-  "$dtis" verify "$out/sig_stream.csv" "$machine" >"$out/sig.verify" || problem="$problem; $(tail -1 "$out/sig.verify")"
-  at_rest "$out/sig_stream.csv" || problem="$problem; not at rest"
+  # On a loaded machine the signal may come before the first setpoint: nothing moved, nothing to
+  # verify.
+  if ! grep -q "aborted after 0 setpoints" "$out/sig_stream.log"; then
+    "$dtis" verify "$out/sig_stream.csv" "$machine" >"$out/sig.verify" || problem="$problem; $(tail -1 "$out/sig.verify")"
+    at_rest "$out/sig_stream.csv" || problem="$problem; not at rest"
+  fi
   grep -q "stopped by       $(signal_name "$sig")$" "$out/sig_stream.log" || problem="$problem; the signal not named"
   if [ -n "$problem" ]; then
     echo "FAIL stream SIG$sig: ${problem#; }" >&2

@@ -11,12 +11,15 @@
 #include <BRepBuilderAPI_Transform.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
 #include <BRepPrimAPI_MakeRevol.hxx>
+#include <BRepPrimAPI_MakeSphere.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
+#include <GCPnts_AbscissaPoint.hxx>
 #include <GC_MakeArcOfCircle.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GeomAdaptor_Curve.hxx>
 #include <GeomAdaptor_Surface.hxx>
 #include <GeomConvert.hxx>
 #include <Geom_BSplineCurve.hxx>
@@ -40,10 +43,14 @@
 #include <gp_Circ.hxx>
 #include <gp_Pln.hxx>
 #include <gp_Trsf.hxx>
+#include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <set>
 #include <sstream>
+#include <tuple>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
@@ -58,6 +65,7 @@
 #include "dtis/kinematics/machines.hpp"
 #include "dtis/strategies/strategy.hpp"
 #include "fixture_shapes.hpp"
+#include "parts.hpp"
 #include "test_support.hpp"
 
 namespace dtis {
@@ -1479,6 +1487,80 @@ io::Job WavyFacesJob(const std::string& step, const std::string& face, const std
 // A job of two faces (one by name, one by number) finishes both: passes on each, the links
 // between them, and no point of the ball below either face (OpenCASCADE's distance from the
 // ball's centre to the whole uncut face), every limit held.
+// A solid sphere of radius 20 cut level at 30 deg of latitude (z = 10): its spherical face
+// faces down over most of it, and side = "auto" machines its outside (the face's outward normal
+// in the solid), not the side that points up: every ball centre is R + 3 from the centre.
+TEST(SurfaceJob, SideAutoMachinesTheOutsideOfASolid) {
+  const TopoDS_Shape solid =
+      BRepPrimAPI_MakeSphere(20.0, -std::numbers::pi / 2, std::numbers::pi / 6).Shape();
+  const std::string step = test::Scratch("cut_sphere.stp");
+  test::WriteStep(solid, step);
+  const StepModel model = StepModel::Load(step);
+  int sphere = 0;
+  for (int k = 1; k <= model.FaceCount(); ++k) {
+    EXPECT_TRUE(model.BoundsSolid(k));
+    if (model.Info(k).type == "sphere") sphere = k;
+  }
+  ASSERT_GT(sphere, 0);
+  const io::Job job =
+      BallJob(step, fmt::format("face = {}", sphere),
+              "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 4\nrange = [-8, 8]",
+              test::Scratch("cut_sphere.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  ASSERT_FALSE(setup.passes.passes.empty());
+  for (const auto& pass : setup.passes.passes) {
+    PathState st = pass->Start();
+    for (int i = 0; i <= 8; ++i) {
+      const PathSample smp = pass->At(st, *pass->Length() * i / 8);
+      st = smp.state;
+      EXPECT_NEAR((smp.pose.tip + 3.0 * smp.pose.axis).norm(), 23.0, 1e-6)
+          << pass->Describe(smp.state);
+    }
+  }
+  // A face of no solid keeps the side that points up.
+  const std::string lone = test::Scratch("lone_sphere_face.stp");
+  test::WriteStep(model.Face(sphere), lone);
+  EXPECT_FALSE(StepModel::Load(lone).BoundsSolid(1));
+}
+
+// Two whole spheres of radius 10, 30 mm apart, finished in one job in planes y = 4: each plane cuts
+// each sphere in a circle that touches neither its seam nor a pole (a closed section). Both are
+// finished, the ball (R3) on each sphere's offset.
+TEST(SurfaceJob, ClosedSectionsAreFinishedOnEveryFaceOfAJob) {
+  TopoDS_Compound both;
+  BRep_Builder builder;
+  builder.MakeCompound(both);
+  for (const double x : {0.0, 30.0}) {
+    const Handle(Geom_SphericalSurface) sphere =
+        new Geom_SphericalSurface(gp_Ax3(gp_Pnt(x, 0, 0), gp::DZ()), 10.0);
+    builder.Add(both, BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi,
+                                              -std::numbers::pi / 2, std::numbers::pi / 2, 1e-7)
+                          .Face());
+  }
+  const std::string step = test::Scratch("two_spheres.stp");
+  test::WriteStep(both, step);
+  const io::Job job =
+      BallJob(step, "face = [1, 2]",
+              "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 1\nrange = [4, 4]",
+              test::Scratch("two_spheres.toml"));
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  std::set<long> centres;
+  for (const auto& pass : setup.passes.passes) {
+    const Eigen::Vector3d centre = pass->StartPose().tip + 3.0 * pass->StartPose().axis;
+    const long c = centre.x() < 15.0 ? 0 : 30;
+    centres.insert(c);
+    PathState st = pass->Start();
+    for (int i = 0; i <= 8; ++i) {
+      const PathSample smp = pass->At(st, *pass->Length() * i / 8);
+      st = smp.state;
+      EXPECT_NEAR((smp.pose.tip + 3.0 * smp.pose.axis - Eigen::Vector3d(c, 0, 0)).norm(), 13.0,
+                  1e-6);
+      EXPECT_NEAR(smp.pose.tip.y(), 4.0, 1e-6);
+    }
+  }
+  EXPECT_EQ(centres, (std::set<long>{0, 30}));
+}
+
 TEST(SurfaceJob, TwoFacesByNameAndNumberAreBothFinished) {
   const std::string step = TwoNamedWavyFaces("two_faces");
   const StepModel model = StepModel::Load(step);
@@ -1976,6 +2058,187 @@ TEST(SurfacePass, TrimmedFacePassesEndOnTheTrimmingCurve) {
     // The planner's march ends there too.
     const PathSample end = pass->At(pass->Start(), *pass->Length());
     EXPECT_NEAR(end.pose.tip.y(), half, 1e-6) << "x = " << c;
+  }
+}
+
+// The contact point's path along a pass on the face, mm: chords between its contact points every
+// `step` mm of the tip's arc length (over a crest the contact point stays on it).
+double ContactPathLength(const strategies::SurfacePass& pass, double step) {
+  const double length = *pass.Length();
+  const int n = std::max(2, static_cast<int>(std::ceil(length / step)));
+  PathState st = pass.Start();
+  strategies::ContactPoint c;
+  EXPECT_EQ(pass.Evaluate(st, &c), strategies::EvalStatus::kOk);
+  Eigen::Vector3d last = c.p;
+  double sum = 0.0;
+  for (int i = 1; i <= n; ++i) {
+    const PathSample smp = pass.At(st, length * i / n);
+    EXPECT_TRUE(smp.status == PathStatus::kOk || smp.status == PathStatus::kEnd);
+    EXPECT_EQ(pass.Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+    sum += (c.p - last).norm();
+    last = c.p;
+    st = smp.state;
+  }
+  return sum;
+}
+
+// The cubic wave without its slope: its crest near y = 20 and its trough near y = 60 are level
+// lines along x. Every strategy's lines run along y, in planes x = const (leading_line: offsets
+// from a guide along x = 40), so each line's contact points follow the wave's section, the same
+// curve for every line.
+TEST(SurfacePass, AFlatBottomCrossesALevelCrestOnEveryStrategy) {
+  const Handle(Geom_BSplineSurface) wave = parts::CubicWaveSurface(0.0);
+  const TopoDS_Face face = BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(wave), 1e-7).Face();
+  const FaceSurface surface(face, "level cubic wave");
+  // The section's length, from OpenCASCADE's curve of the surface at u = 40.
+  const double section = GCPnts_AbscissaPoint::Length(GeomAdaptor_Curve(wave->UIso(40.0)));
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0)}) {
+    for (const auto kind : {StrategySpec::Kind::kPlaneCl, StrategySpec::Kind::kPlaneCc,
+                            StrategySpec::Kind::kUv, StrategySpec::Kind::kLeadingLine}) {
+      SCOPED_TRACE(tool.Describe() + " " + StrategySpec::KindName(kind));
+      StrategySpec spec;
+      spec.kind = kind;
+      spec.stepover_mm = 10.0;
+      spec.along_u = false;
+      spec.plane_normal = Eigen::Vector3d::UnitX();
+      spec.direction = Eigen::Vector3d::UnitY();
+      spec.guide = std::make_shared<const geometry::BSplineCurve>(
+          geometry::BSplineCurveData{1, {0, 0, 1, 1}, {{40, -5, 0}, {40, 85, 0}}, {}});
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // Every line is finished from one side of the face to the other, but for what is left out
+      // (the flat bottom cannot follow the trough), and the two add up to the section.
+      std::map<int, double> covered;
+      for (const auto& pass : passes.passes) {
+        const double x = pass->StartPose().tip.x();
+        covered[static_cast<int>(std::lround(x))] += ContactPathLength(*pass, 0.05);
+      }
+      for (const auto& u : passes.unreachable) {
+        EXPECT_TRUE(u.resumes) << passes.UnreachableText(100);
+        EXPECT_NE(u.why.find("valley"), std::string::npos) << u.why;
+        EXPECT_GT(u.length_mm, 5.0);
+        covered[static_cast<int>(std::lround(u.from.x()))] += u.length_mm;
+      }
+      EXPECT_EQ(covered.size(), kind == StrategySpec::Kind::kLeadingLine ? 7u : 8u);
+      for (const auto& [x, length] : covered) EXPECT_NEAR(length, section, 0.01) << "x = " << x;
+      // A pass across the crest: planned within every limit, the tip at the crest's height over
+      // it, the tool above the face.
+      const strategies::SurfacePass& first = *passes.passes.front();
+      ASSERT_TRUE(first.HasBridges());
+      interp::VpopOptions opt;
+      opt.feed_mm_s = 50.0;
+      const test::Planned planned = test::PlanAndVerify(first, *xyz, opt);
+      EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+      double highest = -INFINITY;
+      for (const auto& sp : planned.points) highest = std::max(highest, xyz->Forward(sp.q).tip.z());
+      // Over the crest (the contact point on it, the normal the axis), every 2 mm: OpenCASCADE's
+      // projection of the tool's bottom and corner.
+      int over = 0;
+      PathState st = first.Start();
+      for (double at = 0.0; at < *first.Length(); at += 2.0) {
+        const PathSample smp = first.At(st, at);
+        st = smp.state;
+        strategies::ContactPoint c;
+        ASSERT_EQ(first.Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+        if (c.n.dot(c.axis) < 1.0 - 1e-12) continue;
+        ++over;
+        EXPECT_GT(SampledClearance(face, tool, smp.pose, c.uv, c.n), -1e-6)
+            << first.Describe(smp.state);
+      }
+      EXPECT_GE(over, 3);
+      double top = -INFINITY;
+      for (int k = 0; k <= 4000; ++k) top = std::max(top, wave->Value(40.0, 10.0 + k * 0.005).Z());
+      EXPECT_NEAR(highest, top, 1e-6);
+    }
+  }
+}
+
+// A whole sphere of radius 10 (its poles collapsed edges of (u, v), its seam the half meridian
+// y = 0, x > 0) finished by a ball R1 on a fixed axis: plane_cl lines through its pole and beside
+// it, closed sections (planes y = c cut it in circles that touch neither the seam nor a pole) and
+// uv lines from pole to pole. Every line is found, and what its passes finish and what is left out
+// (the lower half, where the ball would touch with its upper side) add up to the whole line:
+// a circle of radius sqrt(100 - d^2), d the contact points' distance from the centre's plane
+// (10/11 of the tip plane's), or half a great circle.
+TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
+  const Handle(Geom_SphericalSurface) sphere = new Geom_SphericalSurface(gp_Ax3(gp::XOY()), 10.0);
+  const TopoDS_Face face =
+      BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi, -std::numbers::pi / 2,
+                              std::numbers::pi / 2, 1e-7)
+          .Face();
+  const FaceSurface surface(face, "sphere");
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  // What each line (keyed by `key` of a contact point on it) finishes and leaves out, mm.
+  const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
+    std::map<long, double> covered;
+    for (const auto& pass : passes.passes) {
+      strategies::ContactPoint c;
+      EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+      covered[key(c.p)] += ContactPathLength(*pass, 0.05);
+    }
+    for (const auto& u : passes.unreachable) {
+      EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
+      covered[key(u.from)] += u.length_mm;
+    }
+    return covered;
+  };
+  for (const Eigen::Vector3d normal : {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()}) {
+    // Through the pole (x = 0, a great circle through both), beside it (x = +-0.25), the whole
+    // face (stepover 1 mm); planes y = c: closed sections, but y = 0 along the seam.
+    for (const auto& [first, last, step] :
+         {std::tuple{0.0, 0.0, 1.0}, std::tuple{-0.25, 0.25, 0.5}, std::tuple{-10.5, 10.5, 1.0}}) {
+      SCOPED_TRACE(
+          fmt::format("normal ({}, {}, 0), lines {} to {}", normal.x(), normal.y(), first, last));
+      StrategySpec spec;
+      spec.plane_normal = normal;
+      spec.direction = normal.cross(Eigen::Vector3d::UnitZ());
+      spec.range = std::array<double, 2>{first, last};
+      spec.stepover_mm = step;
+      const auto passes = strategies::BuildPasses(surface, Ball(1.0), Orientation{}, spec);
+      const auto covered = coverage(passes, [&](const Eigen::Vector3d& p) {
+        return std::lround(p.dot(normal) * 1.1 / 0.25);  // the tip plane, in quarter mm
+      });
+      EXPECT_EQ(covered.size(), static_cast<std::size_t>(std::lround((last - first) / step)) + 1)
+          << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double d = quarter * 0.25 / 1.1;
+        EXPECT_NEAR(length, 2.0 * std::numbers::pi * std::sqrt(100.0 - d * d), 0.01)
+            << "tip plane at " << quarter * 0.25 << passes.UnreachableText(100);
+      }
+      // Each pass of the lines through and beside the pole planned within every limit, the ball
+      // on the sphere and the tip on its plane.
+      if (first == -10.5) continue;
+      for (const auto& pass : passes.passes) {
+        interp::VpopOptions opt;
+        opt.feed_mm_s = 50.0;
+        const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+        EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+        const double plane = pass->Evaluator().Constraint().value;
+        for (const auto& sp : planned.points) {
+          const Pose pose = xyz->Forward(sp.q);
+          ASSERT_NEAR((pose.tip + pose.axis).norm(), 11.0, 1e-6);
+          ASSERT_NEAR(pose.tip.dot(normal), plane, 1e-6);
+        }
+      }
+    }
+  }
+  // uv lines along v, from the south pole to the north one: the upper half of each meridian.
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kUv;
+  spec.along_u = false;
+  spec.stepover_mm = 5.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(1.0), Orientation{}, spec);
+  const auto covered = coverage(
+      passes, [](const Eigen::Vector3d& p) { return std::lround(std::atan2(p.y(), p.x()) * 1e3); });
+  EXPECT_EQ(covered.size(), 8u);
+  for (const auto& [angle, length] : covered) {
+    EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01) << "u = " << angle * 1e-3;
+  }
+  for (const auto& pass : passes.passes) {
+    EXPECT_NEAR((pass->EndPose().tip - Eigen::Vector3d(0, 0, 10)).norm(), 0.0, 1e-3);
   }
 }
 

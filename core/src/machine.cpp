@@ -12,6 +12,9 @@ namespace dtis {
 std::string DescribeInverseFailure(const Machine& machine, const InverseResult& result) {
   const auto axes = machine.Axes();
   if (result.axis < 0 || result.axis >= static_cast<int>(axes.size())) {
+    if (result.detail) {
+      return fmt::format("machine '{}' cannot hold this pose: {}", machine.Name(), result.detail);
+    }
     return result.status == InverseStatus::kUnreachable
                ? fmt::format("machine '{}' cannot hold this tool axis", machine.Name())
                : fmt::format("machine '{}' has no solution for this pose", machine.Name());
@@ -40,6 +43,11 @@ std::string DescribeInverseFailure(const Machine& machine, const InverseResult& 
           a.name, result.value * k, unit);
     case InverseStatus::kUnreachable:
       return fmt::format("machine '{}' cannot hold this tool axis", machine.Name());
+    case InverseStatus::kSingular:
+      return fmt::format(
+          "the arm would pass its {} here ({} at {:.6g} {}): its configuration would flip or a "
+          "joint turn without bound; move the part or the path away from it",
+          result.detail ? result.detail : "singularity", a.name, result.value * k, unit);
     case InverseStatus::kOk:
       break;
   }

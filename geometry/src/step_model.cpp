@@ -5,6 +5,7 @@
 #include <BRepAdaptor_Surface.hxx>
 #include <BRepGProp.hxx>
 #include <BRepTools.hxx>
+#include <BRep_Tool.hxx>
 #include <GProp_GProps.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <Interface_InterfaceModel.hxx>
@@ -14,6 +15,7 @@
 #include <StepShape_Face.hxx>
 #include <TCollection_HAsciiString.hxx>
 #include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TransferBRep.hxx>
 #include <XSControl_TransferReader.hxx>
@@ -218,6 +220,21 @@ StepModel StepModel::Load(const std::string& path) {
     for (TopExp_Explorer e(model.shape_, TopAbs_FACE); e.More(); e.Next()) {
       model.faces_.push_back(TopoDS::Face(e.Current()));
     }
+    // The faces that bound a solid or a closed shell: their orientation there says where the
+    // material is.
+    TopTools_IndexedMapOfShape bounding;
+    for (TopExp_Explorer e(model.shape_, TopAbs_SHELL); e.More(); e.Next()) {
+      bool closed = BRep_Tool::IsClosed(e.Current());
+      for (TopExp_Explorer s(model.shape_, TopAbs_SOLID); s.More() && !closed; s.Next()) {
+        for (TopExp_Explorer in(s.Current(), TopAbs_SHELL); in.More() && !closed; in.Next()) {
+          closed = in.Current().IsSame(e.Current());
+        }
+      }
+      if (!closed) continue;
+      for (TopExp_Explorer f(e.Current(), TopAbs_FACE); f.More(); f.Next())
+        bounding.Add(f.Current());
+    }
+    for (const TopoDS_Face& f : model.faces_) model.bounds_solid_.push_back(bounding.Contains(f));
     model.names_ = FaceNames(reader, model.faces_);
   } catch (const Standard_Failure& e) {
     throw Error("{}: OpenCASCADE failed reading the file: {}", path, e.GetMessageString());
@@ -239,6 +256,11 @@ const TopoDS_Face& StepModel::Face(int index) const {
 const std::string& StepModel::FaceName(int index) const {
   Face(index);  // the range check
   return names_[static_cast<std::size_t>(index - 1)];
+}
+
+bool StepModel::BoundsSolid(int index) const {
+  Face(index);  // the range check
+  return bounds_solid_[static_cast<std::size_t>(index - 1)];
 }
 
 std::vector<int> StepModel::FacesNamed(const std::string& name) const {

@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <numbers>
+#include <optional>
 
 #include "dtis/core/error.hpp"
 #include "dtis/geometry/angle.hpp"
@@ -30,6 +32,11 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// The smoothed-axis variant's name: "DTIS (axis within 0.1 deg)".
+std::string SmoothedName(double tol_deg) {
+  return fmt::format("DTIS (axis within {:g} deg)", tol_deg);
 }
 
 // "10 um", "0.5 um": tolerances as the paper names them.
@@ -84,28 +91,38 @@ std::string LimitingAxes(const interp::ProgramResult& program, const std::vector
   return out.empty() ? "tangential feed" : out;
 }
 
-// The largest distance of the planned tip positions on the passes to the exact path, and the
-// largest angle of the planned tool axis to the exact one there.
+// The largest distance of the planned tip positions on the passes to the exact path (`tip`), and
+// the largest angle of the planned tool axis to the rule's axis (`axis`) at the nearest point of
+// its exact path. Both are the exact passes, except for a smoothed axis (SmoothedVariant), whose
+// tip is measured on its own pass and whose axis against the rule's.
+struct ExactPaths {
+  const std::vector<const PathSource*>& passes;
+  const std::vector<PathSamples>& samples;
+};
 void MotionDeviation(const interp::ProgramResult& program, const std::vector<int>& pass_of,
-                     const std::vector<const PathSource*>& exact,
-                     const std::vector<PathSamples>& samples, const Machine& machine,
+                     const ExactPaths& tip, const ExactPaths& axis, const Machine& machine,
                      VariantResult* v) {
-  std::vector<std::size_t> segment_of_pass(exact.size(), pass_of.size());
+  const std::size_t n = tip.passes.size();
+  std::vector<std::size_t> segment_of_pass(n, pass_of.size());
   for (std::size_t seg = 0; seg < pass_of.size(); ++seg) {
     if (pass_of[seg] >= 0) segment_of_pass[static_cast<std::size_t>(pass_of[seg])] = seg;
   }
-  std::vector<double> dev(exact.size(), 0.0), ang(exact.size(), 0.0);
-  ForEachPass(static_cast<int>(exact.size()), [&](std::size_t k) {
+  const bool same = &tip.passes == &axis.passes;
+  std::vector<double> dev(n, 0.0), ang(n, 0.0);
+  ForEachPass(static_cast<int>(n), [&](std::size_t k) {
     const std::size_t seg = segment_of_pass[k];
     if (seg == pass_of.size()) return;
-    const geometry::PathProjector projector(*exact[k], samples[k]);
+    const geometry::PathProjector on_tip(*tip.passes[k], tip.samples[k]);
+    const geometry::PathProjector on_axis(*axis.passes[k], axis.samples[k]);
     const auto [first, end] = SegmentRows(program, seg);
-    std::size_t hint = 0;
+    std::size_t hint = 0, axis_hint = 0;
     for (long r = first; r < end; ++r) {
       const Pose pose = machine.Forward(program.setpoints[static_cast<std::size_t>(r)].q);
-      const auto foot = projector.Project(pose.tip, &hint);
+      const auto foot = on_tip.Project(pose.tip, &hint);
       dev[k] = std::max(dev[k], foot.distance);
-      ang[k] = std::max(ang[k], AngleDeg(pose.axis, foot.pose.axis));
+      const Eigen::Vector3d rule =
+          same ? foot.pose.axis : on_axis.Project(pose.tip, &axis_hint).pose.axis;
+      ang[k] = std::max(ang[k], AngleDeg(pose.axis, rule));
     }
   });
   v->motion_deviation_mm = *std::max_element(dev.begin(), dev.end());
@@ -254,7 +271,7 @@ VariantResult G1Variant(const Context& c, double tol) {
   });
   v.export_deviation_mm = *std::max_element(dev.begin(), dev.end());
   v.export_axis_deviation_deg = *std::max_element(ang.begin(), ang.end());
-  MotionDeviation(program, pass_of, c.exact, c.samples, c.machine, &v);
+  MotionDeviation(program, pass_of, {c.exact, c.samples}, {c.exact, c.samples}, c.machine, &v);
   v.compute_s = Seconds(start);
   return v;
 }
@@ -367,7 +384,27 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
   });
   v.export_deviation_mm = *std::max_element(dev.begin(), dev.end());
   v.export_axis_deviation_deg = *std::max_element(ang.begin(), ang.end());
-  MotionDeviation(pp.program, pp.pass_of_segment, c.exact, c.samples, c.machine, &v);
+  MotionDeviation(pp.program, pp.pass_of_segment, {c.exact, c.samples}, {c.exact, c.samples},
+                  c.machine, &v);
+  v.compute_s = Seconds(start);
+  return v;
+}
+
+// The exact surface with the axis smoothed within `tol_deg` ([orientation] axis_tolerance_deg),
+// on its own passes and links (`setup`).
+VariantResult SmoothedVariant(const Context& c, const SurfaceSetup& setup,
+                              const std::vector<PathSamples>& samples, double tol_deg) {
+  const auto start = Clock::now();
+  VariantResult v;
+  v.kind = VariantResult::Kind::kExact;
+  v.name = SmoothedName(tol_deg);
+  v.axis_tolerance_deg = tol_deg;
+  std::vector<const PathSource*> passes;
+  for (const auto& p : setup.passes.passes) passes.push_back(p.get());
+  const PassProgram pp = PlanPasses(passes, setup, c.machine, c.run, c.job.file);
+  Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
+  MotionDeviation(pp.program, pp.pass_of_segment, {passes, samples}, {c.exact, c.samples},
+                  c.machine, &v);
   v.compute_s = Seconds(start);
   return v;
 }
@@ -380,7 +417,8 @@ VariantResult ExactVariant(const Context& c) {
   const PassProgram pp = PlanPasses(c.exact, c.setup, c.machine, c.run, c.job.file);
   Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
   v.pass_rows = PassRows(pp);
-  MotionDeviation(pp.program, pp.pass_of_segment, c.exact, c.samples, c.machine, &v);
+  MotionDeviation(pp.program, pp.pass_of_segment, {c.exact, c.samples}, {c.exact, c.samples},
+                  c.machine, &v);
   v.compute_s = Seconds(start);
   return v;
 }
@@ -398,9 +436,11 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
   }
   const auto machine = LoadJobMachine(job);
   const CompareSpec& spec = job.compare;
-  // Each planner plans from a copy of the job and of the passes' options that names it.
+  // Each planner plans from a copy of the job and of the passes' options that names it. The
+  // exports are made from the rule's axis, the papers' reference, whatever the job smooths.
   Job planned = job;
-  SurfaceSetup setup = SetUpSurface(job);
+  if (planned.surface) planned.surface->orientation.axis_tolerance_rad = 0.0;
+  SurfaceSetup setup = SetUpSurface(planned);
   CheckPassesInTravel(setup, *machine, job.file);
   Context c{planned, options, *machine, setup, {}, {}, {}, {}, {}};
   c.run.threads = options.threads;
@@ -454,6 +494,37 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
     }
   }
   with_each_planner("DTIS (exact surface)", [&] { return ExactVariant(c); });
+  // A tilt_yaw axis is also smoothed within the tolerance the exports keep the axis in, like for
+  // like, and within the job's own tolerance if it names another.
+  if (job.surface->orientation.kind == strategies::Orientation::Kind::kTiltYaw) {
+    std::vector<double> tolerances{spec.orientation_tol_deg};
+    const double own = job.surface->orientation.axis_tolerance_rad * 180.0 / std::numbers::pi;
+    if (own > 0.0 && std::abs(own - spec.orientation_tol_deg) > 1e-9) tolerances.push_back(own);
+    for (double tol : tolerances) {
+      Job smoothed = planned;
+      smoothed.surface->orientation.axis_tolerance_rad = tol * std::numbers::pi / 180.0;
+      std::optional<SurfaceSetup> smoothed_setup;
+      try {
+        smoothed_setup.emplace(SetUpSurface(smoothed));
+      } catch (const Error& e) {
+        // A pass the axis cannot be smoothed on (a pole, a tolerance too tight): said, not fatal.
+        r.notes.push_back(fmt::format("{}: not planned: {}", SmoothedName(tol), e.what()));
+        continue;
+      }
+      std::vector<PathSamples> samples(smoothed_setup->passes.passes.size());
+      ForEachPass(static_cast<int>(samples.size()), [&](std::size_t k) {
+        samples[k] = geometry::SamplePath(*smoothed_setup->passes.passes[k], spec.sample_step_mm,
+                                          fmt::format("{}: pass {}", job.file, k + 1));
+      });
+      const std::size_t first = r.variants.size();
+      with_each_planner(SmoothedName(tol), [&] {
+        smoothed_setup->pass_options.planner = smoothed_setup->link_options.planner =
+            setup.pass_options.planner;
+        return SmoothedVariant(c, *smoothed_setup, samples, tol);
+      });
+      for (std::size_t i = first; i < r.variants.size(); ++i) r.variants[i].files.clear();
+    }
+  }
   return r;
 }
 
@@ -461,10 +532,12 @@ std::string VariantLabel(const VariantResult& variant) {
   return fmt::format("{} ({})", variant.name, interp::PlannerName(variant.planner));
 }
 
-const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner) {
+const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner,
+                                    double axis_tolerance_deg) {
   const VariantResult* found = nullptr;
   for (const auto& v : result.variants) {
     if (v.kind != VariantResult::Kind::kExact) continue;
+    if (std::abs(v.axis_tolerance_deg - axis_tolerance_deg) > 1e-9) continue;
     if (found == nullptr || v.planner == planner) found = &v;
     if (v.planner == planner) break;
   }
@@ -515,14 +588,15 @@ std::string FormatCompareText(const CompareResult& r) {
 
 std::string FormatCompareCsv(const CompareResult& r) {
   std::string out =
-      "variant,planner,tolerance_mm,blocks,motion_time_s,pass_time_s,export_deviation_mm,"
-      "export_axis_deviation_deg,motion_deviation_mm,motion_axis_deviation_deg,worst_ratio,"
-      "verified,limiting,compute_s\n";
+      "variant,planner,tolerance_mm,axis_tolerance_deg,blocks,motion_time_s,pass_time_s,"
+      "export_deviation_mm,export_axis_deviation_deg,motion_deviation_mm,"
+      "motion_axis_deviation_deg,worst_ratio,verified,limiting,compute_s\n";
   for (const auto& v : r.variants) {
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name,
-                       interp::PlannerName(v.planner), v.tolerance_mm, v.blocks, v.motion_time_s,
-                       v.pass_time_s, v.export_deviation_mm, v.export_axis_deviation_deg,
-                       v.motion_deviation_mm, v.motion_axis_deviation_deg, v.verify.worst_ratio,
+    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\",{}\n", v.name,
+                       interp::PlannerName(v.planner), v.tolerance_mm, v.axis_tolerance_deg,
+                       v.blocks, v.motion_time_s, v.pass_time_s, v.export_deviation_mm,
+                       v.export_axis_deviation_deg, v.motion_deviation_mm,
+                       v.motion_axis_deviation_deg, v.verify.worst_ratio,
                        v.verify.Passed() ? "yes" : "no", v.limiting, v.compute_s);
   }
   return out;

@@ -858,6 +858,7 @@ SurfaceSetup SetUpSurface(const Job& job, const std::function<void(std::string_v
   // Face after face, each with the whole strategy; their passes and stretches left out in turn.
   for (std::size_t k = 0; k < placed.size(); ++k) {
     strategies::StrategySpec strategy = spec.strategy;
+    strategy.bounds_solid = model.BoundsSolid(finished[k]);
     if (checks) strategy.check = std::make_shared<const geometry::CheckFaces>(checks->Without(k));
     const geometry::FaceSurface face(placed[k].face, placed[k].where);
     strategies::PassList one = strategies::BuildPasses(face, spec.tool, spec.orientation, strategy);

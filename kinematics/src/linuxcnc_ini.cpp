@@ -188,6 +188,8 @@ constexpr Module kModules[] = {
     {"xyzac-trt-kins", Kinematics::kXyzacTrt, "XYZAC", false},
     {"xyzbc-trt-kins", Kinematics::kXyzbcTrt, "XYZBC", false},
     {"maxkins", Kinematics::kXyzbcHeadTable, "XYZABCUVW", true},
+    {"genserkins", Kinematics::kSerialArm, "XYZABC", false},
+    {"pumakins", Kinematics::kSerialArm, "XYZABC", false},
 };
 
 class IniMachineReader {
@@ -213,10 +215,15 @@ class IniMachineReader {
     }
     if (!module) {
       Fail(kins, fmt::format("kinematics '{}' is not one dtis models (trivkins, xyzac-trt-kins, "
-                             "xyzbc-trt-kins, maxkins)",
+                             "xyzbc-trt-kins, maxkins, genserkins, pumakins)",
                              module_name));
     }
     d.kinematics = module->kinematics;
+    if (d.kinematics == Kinematics::kSerialArm) {
+      ReadUnits();
+      ReadArm(module_name, &d);
+      return d;
+    }
     const std::string traj = Coordinates();
     if (coordinates.empty()) coordinates = traj.empty() ? module->default_coordinates : traj;
     ReadUnits();
@@ -396,7 +403,8 @@ class IniMachineReader {
     return a;
   }
 
-  void ReadPivots(const std::string& module, MachineDescription* d) const {
+  // The pins the INI's HAL files and HALCMD lines leave set.
+  HalPins Pins(const std::string& module) const {
     HalPins pins(ini_);
     const std::filesystem::path dir = std::filesystem::path(name_).parent_path();
     // A HAL file that cannot be read may hold the pivots: an error, never a pivot silently at 0
@@ -415,12 +423,127 @@ class IniMachineReader {
     for (const auto* e : ini_.All("HAL", "HALFILE")) hal_file(*e);
     for (const auto* e : ini_.All("HAL", "HALCMD")) pins.Command(e->value);
     for (const auto* e : ini_.All("HAL", "POSTGUI_HALFILE")) hal_file(*e);
+    return pins;
+  }
+
+  // A number pin of the module, or `fallback` when nothing sets it.
+  double Pin(const HalPins& pins, const std::string& module, const std::string& name,
+             double fallback) const {
+    const auto v = pins.Value(module + "." + name);
+    if (!v) return fallback;
+    const auto n = ParseNumber(*v);
+    if (!n) throw Error("{}: HAL sets {}.{} to '{}', expected a number", name_, module, name, *v);
+    return *n;
+  }
+
+  // A six-joint arm: [JOINT_0..5] limits in degrees (both modules take their joints in degrees),
+  // the chain from the module's pins in the INI's length unit, the last frame as the tool's (its
+  // +z out of the flange, the tool length in D-5 or D6), the part frame the arm's world frame,
+  // home at the joints' HOME, J6 locked there.
+  void ReadArm(const std::string& module, MachineDescription* d) const {
+    if (const auto* joints = ini_.Find("KINS", "JOINTS")) {
+      const auto n = ParseNumber(joints->value);
+      if (!n || *n != 6) {
+        Fail(*joints, fmt::format("{} in dtis drives six joints (an arm's), got '{}'; the extra "
+                                  "joints LinuxCNC passes through are not modelled",
+                                  module, joints->value));
+      }
+    }
+    if (const auto* e = ini_.Find("TRAJ", "ANGULAR_UNITS"); e && angle_ != kPi / 180.0) {
+      Fail(*e, fmt::format("{} takes its joints in degrees: expected deg", module));
+    }
+    const double deg = kPi / 180.0;
+    for (int j = 0; j < 6; ++j) {
+      const std::string section = fmt::format("JOINT_{}", j);
+      const auto value = [&](const std::string& key, bool required) -> std::optional<double> {
+        const auto* e = ini_.Find(section, key);
+        if (!e) {
+          if (required) throw Error("{}: [{}] {} is missing", name_, section, key);
+          return std::nullopt;
+        }
+        const auto v = ParseNumber(e->value);
+        if (!v) Fail(*e, fmt::format("expected a number, got '{}'", e->value));
+        return *v;
+      };
+      const auto positive = [&](const std::string& key, bool required) -> std::optional<double> {
+        const auto v = value(key, required);
+        if (v && !(*v > 0.0)) Fail(*ini_.Find(section, key), "expected a number > 0");
+        return v;
+      };
+      Axis a;
+      a.name = fmt::format("J{}", j + 1);
+      a.rotary = true;
+      a.vmax = *positive("MAX_VELOCITY", true) * deg;
+      a.amax = *positive("MAX_ACCELERATION", true) * deg;
+      if (const auto jerk = positive("MAX_JERK", false)) {
+        a.jmax = *jerk * deg;
+      } else if (options_.jerk_time_s) {
+        a.jmax = a.amax / *options_.jerk_time_s;
+      } else {
+        throw Error(
+            "{}: [{}] gives no MAX_JERK; give the job key machine_jerk_time_ms (or "
+            "--jerk-time-ms): jerk = MAX_ACCELERATION / jerk time",
+            name_, section);
+      }
+      const auto lo = value("MIN_LIMIT", false), hi = value("MAX_LIMIT", false);
+      if (!lo || !hi) {
+        a.continuous = true;
+        a.travel_min = -INFINITY;
+        a.travel_max = INFINITY;
+      } else if (!(*lo < *hi)) {
+        throw Error("{}: [{}] MIN_LIMIT {} not below MAX_LIMIT {}", name_, section, *lo, *hi);
+      } else {
+        a.travel_min = *lo * deg;
+        a.travel_max = *hi * deg;
+      }
+      d->arm.home[static_cast<std::size_t>(j)] = value("HOME", false).value_or(0.0) * deg;
+      d->axes.push_back(a);
+    }
+    ArmDescription& arm = d->arm;
+    arm.form = ArmDescription::Form::kDh;
+    arm.tool_tip = Eigen::Vector3d::Zero();
+    arm.tool_axis = -Eigen::Vector3d::UnitZ();
+    arm.locked_joint = 5;
+    arm.locked_at = arm.home[5];
+    const HalPins pins = Pins(module);
+    if (module == "pumakins") {
+      // Craig's PUMA 560: the modified DH chain pumakins' closed forms are written for.
+      const double h = kPi / 2;
+      arm.a = {0, 0, Pin(pins, module, "A2", 300.0), Pin(pins, module, "A3", 50.0), 0, 0};
+      arm.alpha = {0, -h, 0, -h, h, -h};
+      arm.d = {0,
+               0,
+               Pin(pins, module, "D3", 70.0),
+               Pin(pins, module, "D4", 400.0),
+               0,
+               Pin(pins, module, "D6", 70.0)};
+    } else {
+      // genserkins' defaults (genserkins.h) where nothing sets a pin.
+      const double h = kPi / 2;
+      const std::array<double, 6> a0{0, 0, 300, 50, 0, 0}, alpha0{0, -h, 0, -h, h, -h},
+          d0{0, 0, 70, 400, 0, 0};
+      for (std::size_t i = 0; i < 6; ++i) {
+        arm.a[i] = Pin(pins, module, fmt::format("A-{}", i), a0[i]);
+        arm.alpha[i] = Pin(pins, module, fmt::format("ALPHA-{}", i), alpha0[i]);
+        arm.d[i] = Pin(pins, module, fmt::format("D-{}", i), d0[i]);
+        if (i > 0 && Pin(pins, module, fmt::format("unrotate-{}", i), 0.0) != 0.0) {
+          throw Error(
+              "{}: HAL sets genserkins.unrotate-{}: joints coupled to the previous one "
+              "are not modelled",
+              name_, i);
+        }
+      }
+    }
+    for (std::size_t i = 0; i < 6; ++i) {
+      arm.a[i] *= length_;
+      arm.d[i] *= length_;
+    }
+  }
+
+  void ReadPivots(const std::string& module, MachineDescription* d) const {
+    const HalPins pins = Pins(module);
     const auto pin = [&](const std::string& name, double fallback) {
-      const auto v = pins.Value(module + "." + name);
-      if (!v) return fallback;
-      const auto n = ParseNumber(*v);
-      if (!n) throw Error("{}: HAL sets {}.{} to '{}', expected a number", name_, module, name, *v);
-      return *n;
+      return Pin(pins, module, name, fallback);
     };
     if (module == "maxkins") {
       // Tilting head B (reversed), table C (reversed) about the machine's Z axis.

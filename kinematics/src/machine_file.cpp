@@ -30,25 +30,28 @@ double Unit(TomlTable& t, std::string_view key, const std::map<std::string, doub
 }
 
 // The angle and rotary units are required only when the machine has rotary axes; an XYZ machine
-// may state them (they are checked) or leave them out.
-Units ReadUnits(TomlTable& t, bool rotary_axes) {
+// may state them (they are checked) or leave them out. Likewise the linear ones for an arm, whose
+// joints are all rotary (its lengths are in `length`).
+Units ReadUnits(TomlTable& t, bool rotary_axes, bool linear_axes = true) {
   Units u;
   u.length = Unit(t, "length", {{"mm", 1.0}, {"m", 1000.0}, {"in", 25.4}});
   // A unit only rotary axes use: read when they exist or the file states it, else left at 1.
   const auto rotary = [&](std::string_view key, const std::map<std::string, double>& factors) {
     return rotary_axes || t.Has(key) ? Unit(t, key, factors) : 1.0;
   };
+  const auto linear = [&](std::string_view key, const std::map<std::string, double>& factors) {
+    return linear_axes || t.Has(key) ? Unit(t, key, factors) : 1.0;
+  };
   u.angle = rotary("angle", {{"deg", kPi / 180.0}, {"rad", 1.0}});
-  u.linear_velocity = Unit(t, "linear_velocity",
-                           {{"mm/s", 1.0},
-                            {"mm/min", 1.0 / 60.0},
-                            {"m/s", 1000.0},
-                            {"m/min", 1000.0 / 60.0},
-                            {"in/s", 25.4},
-                            {"in/min", 25.4 / 60.0}});
+  u.linear_velocity = linear("linear_velocity", {{"mm/s", 1.0},
+                                                 {"mm/min", 1.0 / 60.0},
+                                                 {"m/s", 1000.0},
+                                                 {"m/min", 1000.0 / 60.0},
+                                                 {"in/s", 25.4},
+                                                 {"in/min", 25.4 / 60.0}});
   u.linear_acceleration =
-      Unit(t, "linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}, {"in/s^2", 25.4}});
-  u.linear_jerk = Unit(t, "linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}, {"in/s^3", 25.4}});
+      linear("linear_acceleration", {{"mm/s^2", 1.0}, {"m/s^2", 1000.0}, {"in/s^2", 25.4}});
+  u.linear_jerk = linear("linear_jerk", {{"mm/s^3", 1.0}, {"m/s^3", 1000.0}, {"in/s^3", 25.4}});
   u.rotary_velocity = rotary("rotary_velocity", {{"rad/s", 1.0},
                                                  {"deg/s", kPi / 180.0},
                                                  {"rpm", 2.0 * kPi / 60.0},
@@ -99,10 +102,120 @@ std::string TiltPivotKey(Kinematics k) {
   return fmt::format("{}_axis", static_cast<char>(std::tolower(AxisLetters(k)[3])));
 }
 
+// Six numbers, one per joint J1..J6, times `scale`; all 0 when the key is optional and absent.
+std::array<double, 6> SixNumbers(TomlTable& t, std::string_view key, double scale, bool required) {
+  std::array<double, 6> out{};
+  if (!required && !t.Has(key)) return out;
+  const auto v = t.Numbers(key);
+  if (v.size() != 6) t.Fail(key, "expected 6 numbers, one per joint J1..J6");
+  for (std::size_t i = 0; i < 6; ++i) out[i] = v[i] * scale;
+  return out;
+}
+
+std::array<Eigen::Vector3d, 6> SixPoints(TomlTable& t, std::string_view key, double scale,
+                                         bool required) {
+  std::array<Eigen::Vector3d, 6> out;
+  out.fill(Eigen::Vector3d::Zero());
+  if (!required && !t.Has(key)) return out;
+  const auto v = t.Points(key);
+  if (v.size() != 6) t.Fail(key, "expected 6 points [x, y, z], one per joint J1..J6");
+  for (std::size_t i = 0; i < 6; ++i) out[i] = v[i] * scale;
+  return out;
+}
+
+Eigen::Vector3d Direction(TomlTable& t, std::string_view key) {
+  const Eigen::Vector3d v = t.Point(key);
+  if (!(v.norm() > 0.0)) t.Fail(key, "expected a direction [x, y, z], not zero");
+  return v.normalized();
+}
+
+// A six-joint serial arm: joints J1..J6, the chain as [frames] or [dh], the tool, the part's
+// placement and which joint is locked (docs/robots.md).
+void ReadArm(TomlTable& root, MachineDescription* d) {
+  TomlTable units_table = root.Table("units");
+  const Units u = ReadUnits(units_table, true, false);
+  TomlTable axes_table = root.Table("axes");
+  std::vector<std::string> joints;
+  for (int i = 1; i <= 6; ++i) joints.push_back(fmt::format("J{}", i));
+  for (const std::string& n : joints) d->axes.push_back(ReadAxis(axes_table, n, true, u));
+  axes_table.RejectUnknown();
+  ArmDescription& arm = d->arm;
+  const bool frames = root.Has("frames"), dh = root.Has("dh");
+  if (frames == dh) {
+    root.Fail(frames ? "dh" : "frames",
+              "expected the arm's chain once: a [frames] table (joint origins, rotations and "
+              "axes) or a [dh] table (modified Denavit-Hartenberg parameters)");
+  }
+  if (frames) {
+    TomlTable f = root.Table("frames");
+    arm.form = ArmDescription::Form::kFrames;
+    arm.origin = SixPoints(f, "origin", u.length, true);
+    arm.rpy = SixPoints(f, "rpy", u.angle, false);
+    arm.axis = SixPoints(f, "axis", 1.0, true);
+    for (const Eigen::Vector3d& a : arm.axis) {
+      if (!(a.norm() > 0.0)) f.Fail("axis", "expected 6 directions, none of them zero");
+    }
+    f.RejectUnknown();
+  } else {
+    TomlTable t = root.Table("dh");
+    arm.form = ArmDescription::Form::kDh;
+    t.Choice("convention", {"modified"});
+    arm.a = SixNumbers(t, "a", u.length, true);
+    arm.alpha = SixNumbers(t, "alpha", u.angle, true);
+    arm.d = SixNumbers(t, "d", u.length, true);
+    arm.theta = SixNumbers(t, "theta", u.angle, false);
+    t.RejectUnknown();
+  }
+  TomlTable tool = root.Table("tool");
+  arm.tool_tip = tool.Point("tip") * u.length;
+  arm.tool_axis = Direction(tool, "axis");
+  tool.RejectUnknown();
+  TomlTable part = root.Table("part");
+  arm.part_origin = part.Point("origin") * u.length;
+  arm.part_rpy = part.OptionalPoint("rpy").value_or(Eigen::Vector3d::Zero()) * u.angle;
+  part.RejectUnknown();
+  TomlTable a = root.Table("arm");
+  arm.home = SixNumbers(a, "home", u.angle, true);
+  const std::string locked = a.Choice("locked_joint", joints);
+  arm.locked_joint = locked[1] - '1';
+  arm.locked_at = a.OptionalNumber("locked_at")
+                      .value_or(arm.home[static_cast<std::size_t>(arm.locked_joint)] / u.angle) *
+                  u.angle;
+  if (arm.locked_joint != 5 && ToolOnLastAxis(arm)) {
+    a.Fail("locked_joint",
+           "the tool lies on J6's axis, so J6 only turns it about its own axis: expected \"J6\"");
+  }
+  // The arm starts every path from home with the locked joint where it stays: both within travel.
+  const auto within = [&](std::string_view key, std::size_t joint, double value) {
+    const Axis& j = d->axes[joint];
+    if (!j.continuous && (value < j.travel_min || value > j.travel_max)) {
+      a.Fail(key,
+             fmt::format("{} at {:g} is outside its travel [{:g}, {:g}] (in the file's angle "
+                         "unit)",
+                         j.name, value / u.angle, j.travel_min / u.angle, j.travel_max / u.angle));
+    }
+  };
+  for (std::size_t i = 0; i < 6; ++i) within("home", i, arm.home[i]);
+  within(a.Has("locked_at") ? "locked_at" : "locked_joint",
+         static_cast<std::size_t>(arm.locked_joint), arm.locked_at);
+  if (const auto margin = a.OptionalNumber("singularity_margin")) {
+    if (!(*margin > 0.0 && *margin * u.angle < kPi / 4)) {
+      a.Fail("singularity_margin", "expected an angle > 0 and below 45 deg");
+    }
+    arm.singular_sine = std::sin(*margin * u.angle);
+  }
+  a.RejectUnknown();
+  root.RejectUnknown();
+}
+
 MachineDescription ReadMachine(TomlTable& root) {
   MachineDescription d;
   d.name = root.String("name");
   d.kinematics = *KinematicsNamed(root.Choice("kinematics", KinematicsNames()));
+  if (d.kinematics == Kinematics::kSerialArm) {
+    ReadArm(root, &d);
+    return d;
+  }
   const bool five_axis = d.kinematics != Kinematics::kXyz;
   TomlTable units_table = root.Table("units");
   const Units units = ReadUnits(units_table, five_axis);
@@ -142,10 +255,45 @@ MachineDescription ReadMachine(TomlTable& root) {
   return d;
 }
 
-std::string Number(double v) { return fmt::format("{:.15g}", v); }
+std::string Number(double v) { return fmt::format("{:.15g}", v + 0.0); }  // no "-0"
 
 std::string Point(const Eigen::Vector3d& p) {
   return fmt::format("[{}, {}, {}]", Number(p.x()), Number(p.y()), Number(p.z()));
+}
+
+std::string Numbers(const std::array<double, 6>& v, double scale) {
+  return fmt::format("[{}, {}, {}, {}, {}, {}]", Number(v[0] * scale), Number(v[1] * scale),
+                     Number(v[2] * scale), Number(v[3] * scale), Number(v[4] * scale),
+                     Number(v[5] * scale));
+}
+
+std::string Points(const std::array<Eigen::Vector3d, 6>& v, double scale) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < 6; ++i) out += (i ? ", " : "") + Point(v[i] * scale);
+  return out + "]";
+}
+
+// An arm's chain, tool, part and locked joint, in mm and deg.
+std::string FormatArm(const ArmDescription& arm) {
+  constexpr double kDeg = 180.0 / kPi;
+  std::string out;
+  if (arm.form == ArmDescription::Form::kFrames) {
+    out += fmt::format("\n[frames]\norigin = {}\nrpy = {}\naxis = {}\n", Points(arm.origin, 1.0),
+                       Points(arm.rpy, kDeg), Points(arm.axis, 1.0));
+  } else {
+    out +=
+        fmt::format("\n[dh]\nconvention = \"modified\"\na = {}\nalpha = {}\nd = {}\ntheta = {}\n",
+                    Numbers(arm.a, 1.0), Numbers(arm.alpha, kDeg), Numbers(arm.d, 1.0),
+                    Numbers(arm.theta, kDeg));
+  }
+  out += fmt::format("\n[tool]\ntip = {}\naxis = {}\n", Point(arm.tool_tip), Point(arm.tool_axis));
+  out += fmt::format("\n[part]\norigin = {}\nrpy = {}\n", Point(arm.part_origin),
+                     Point(arm.part_rpy * kDeg));
+  out += fmt::format(
+      "\n[arm]\nhome = {}\nlocked_joint = \"J{}\"\nlocked_at = {}\nsingularity_margin = {}\n",
+      Numbers(arm.home, kDeg), arm.locked_joint + 1, Number(arm.locked_at * kDeg),
+      Number(std::asin(arm.singular_sine) * kDeg));
+  return out;
 }
 
 }  // namespace
@@ -207,6 +355,7 @@ std::string FormatMachineFile(const MachineDescription& d) {
                        Number(a.amax * k), Number(a.jmax * k));
   }
   if (d.kinematics == Kinematics::kXyz) return out;
+  if (d.kinematics == Kinematics::kSerialArm) return out + FormatArm(d.arm);
   out += fmt::format("\n[pivot]\nc_axis = {}\n", Point(d.c_pivot));
   if (IsHeadTable(d.kinematics)) {
     out += fmt::format("head_length = {}\n", Number(d.head_length_mm));

@@ -110,6 +110,7 @@ constexpr KinematicsInfo kKinematics[] = {
     {"xyzbc-trt", Kinematics::kXyzbcTrt, "XYZBC", false, false},
     {"xyzac-head-table", Kinematics::kXyzacHeadTable, "XYZAC", true, false},
     {"xyzbc-head-table", Kinematics::kXyzbcHeadTable, "XYZBC", true, false},
+    {"serial-arm", Kinematics::kSerialArm, "", false, false},
 };
 
 const KinematicsInfo& Info(Kinematics k) {
@@ -119,7 +120,9 @@ const KinematicsInfo& Info(Kinematics k) {
   throw Error("unknown kinematics {}", static_cast<int>(k));
 }
 
-bool TiltsAboutY(Kinematics k) { return AxisLetters(k)[3] == 'B'; }
+bool TiltsAboutY(Kinematics k) {
+  return k == Kinematics::kXyzbcTrt || k == Kinematics::kXyzbcHeadTable;
+}
 
 }  // namespace
 
@@ -238,6 +241,8 @@ std::unique_ptr<Machine> BuildMachine(const MachineDescription& d) {
     case Kinematics::kXyzacHeadTable:
     case Kinematics::kXyzbcHeadTable:
       return std::make_unique<HeadTableMachine>(d);
+    case Kinematics::kSerialArm:
+      return std::make_unique<SerialArmMachine>(d);
   }
   throw Error("machine '{}': unknown kinematics", d.name);
 }

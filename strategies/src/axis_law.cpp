@@ -45,25 +45,49 @@ Eigen::Vector3d AxisLaw::At(double s, Eigen::Vector3d* d_ds) const {
 }
 
 AxisLaw FitAxisLaw(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& axes,
-                   const std::vector<double>& breaks) {
+                   const std::vector<double>& breaks, double smoothing) {
   if (breaks.size() < 2 || s.size() != axes.size()) {
     throw std::invalid_argument("FitAxisLaw: expected two knots or more, a sample per axis");
   }
+  constexpr int p = AxisLaw::kDegree;
   const std::vector<double> knots = KnotVector(breaks);
-  const int n = static_cast<int>(knots.size()) - AxisLaw::kDegree - 1;
+  const int n = static_cast<int>(knots.size()) - p - 1;
   if (static_cast<int>(s.size()) < 2 * n) {
     throw std::invalid_argument("FitAxisLaw: fewer samples than twice the poles");
   }
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(s.size()), n);
-  Eigen::MatrixXd b(static_cast<Eigen::Index>(s.size()), 3);
+  // The normal equations (N^T W N + smoothing R) x = N^T W b, each sample and each span touching
+  // p + 1 consecutive poles.
+  Eigen::MatrixXd lhs = Eigen::MatrixXd::Zero(n, n);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
   for (std::size_t i = 0; i < s.size(); ++i) {
-    double basis[AxisLaw::kDegree + 1];
-    const int first = geometry::NonZeroBasis(knots, AxisLaw::kDegree, s[i], basis);
-    for (int j = 0; j <= AxisLaw::kDegree; ++j)
-      a(static_cast<Eigen::Index>(i), first + j) = basis[j];
-    b.row(static_cast<Eigen::Index>(i)) = axes[i].transpose();
+    const double w = 0.5 * ((i + 1 < s.size() ? s[i + 1] : s[i]) - (i > 0 ? s[i - 1] : s[i]));
+    double basis[p + 1];
+    const int first = geometry::NonZeroBasis(knots, p, s[i], basis);
+    for (int j = 0; j <= p; ++j) {
+      rhs.row(first + j) += w * basis[j] * axes[i].transpose();
+      for (int k = 0; k <= p; ++k) lhs(first + j, first + k) += w * basis[j] * basis[k];
+    }
   }
-  const Eigen::MatrixXd x = a.colPivHouseholderQr().solve(b);
+  if (smoothing > 0.0) {
+    // The third derivatives of quintic basis functions are quadratics in a span: their products
+    // are quartics, which three Gauss-Legendre points integrate exactly.
+    static constexpr double kNode[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+    static constexpr double kWeight[3] = {5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0};
+    for (std::size_t b = 0; b + 1 < breaks.size(); ++b) {
+      const double half = 0.5 * (breaks[b + 1] - breaks[b]), mid = breaks[b] + half;
+      for (int g = 0; g < 3; ++g) {
+        const double x = mid + half * kNode[g];
+        const int span = geometry::KnotSpan(knots, p, x);
+        geometry::BasisTable d;
+        geometry::BasisDerivativesInSpan(knots, span, x, p, 3, d);
+        const double w = smoothing * half * kWeight[g];
+        for (int j = 0; j <= p; ++j) {
+          for (int k = 0; k <= p; ++k) lhs(span - p + j, span - p + k) += w * d[3][j] * d[3][k];
+        }
+      }
+    }
+  }
+  const Eigen::MatrixXd x = lhs.ldlt().solve(rhs);
   std::vector<Eigen::Vector3d> poles(static_cast<std::size_t>(n));
   for (int j = 0; j < n; ++j) poles[static_cast<std::size_t>(j)] = x.row(j).transpose();
   return AxisLaw(knots, std::move(poles));

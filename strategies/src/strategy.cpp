@@ -32,6 +32,9 @@ struct Gap {
   double contact_mm = 0.0;  // of the contact point's path on the face through it
   std::string why;
   bool outside_bounds = false;  // the tip leaves the job's bounds: not reported as unreachable
+  // Opened where the trace could not step on (a uv line, whose other end is not traced): it
+  // closes only where the tool fits a whole march step on.
+  bool stuck = false;
 };
 
 struct Candidate {
@@ -43,6 +46,9 @@ struct Candidate {
   std::vector<Bridge> bridges;
   std::vector<double> knot_lines;  // arc lengths where the trace crosses a knot line of the face
   std::vector<Gap> gaps;  // sorted by arc length: the crossing's passes are the pieces between
+  // The contact points the trace went through (at most a step apart): where the line was traced.
+  std::vector<Eigen::Vector3d> trail;
+  bool closed = false;  // a closed section of the face: it ends where it starts
 };
 
 class Builder {
@@ -79,6 +85,11 @@ class Builder {
       }
       const std::size_t before = found.size();
       FindPasses(static_cast<int>(k), lines[k], &found);
+      if (IsPlane()) {
+        FindInteriorPasses(static_cast<int>(k), lines[k], &found);
+      } else {
+        FindPoleStart(static_cast<int>(k), lines[k], &found);
+      }
       if (found.size() == before && spec_.range) {
         throw Error("{}: the strategy line {} misses the face ({}); the face spans {} here",
                     face_.Where(), k + 1, lines[k].Describe(), ExtentText());
@@ -184,6 +195,8 @@ class Builder {
   int DetermineSide() const {
     if (spec_.side == StrategySpec::Side::kFace) return FaceSign();
     if (spec_.side == StrategySpec::Side::kReversed) return -FaceSign();
+    // A face of a solid: its outside, where the material is not.
+    if (spec_.bounds_solid) return FaceSign();
     double up = 0.0;
     geometry::SurfaceDerivatives d;
     ForGrid(16, true, [&](const Eigen::Vector2d& uv) {
@@ -433,9 +446,13 @@ class Builder {
     const double near = 2.0 * tool_.radius + 1e-3;
     for (Candidate& other : *out) {
       if (other.line != line) continue;
-      if ((other.start.tip - start.tip).norm() < 1e-6) return;
+      // The same crossing found again (not the other one leaving the same point of a seam).
+      if ((other.start.tip - start.tip).norm() < 1e-6 &&
+          (other.start.uv - start.uv).norm() < 1e-6 * (1.0 + start.uv.norm())) {
+        return;
+      }
       if (IsPlane() && (other.start.tip - cand.end.tip).norm() < near &&
-          (other.end.tip - cand.start.tip).norm() < near) {
+          (other.end.tip - cand.start.tip).norm() < near && SameWay(other, cand)) {
         const double other_along = Along(other, direction);
         if (other_along >= along) return;
         other = cand;
@@ -443,6 +460,182 @@ class Builder {
       }
     }
     out->push_back(cand);
+  }
+
+  // Whether the trace's step from `cur` to `next` (about `h` mm) comes back to `start`, the point
+  // a closed section was traced from: it crosses the plane through start across its tangent,
+  // from behind, within the step.
+  static bool Closes(const ContactPoint& start, const ContactPoint& cur, const ContactPoint& next,
+                     double h) {
+    return (cur.tip - start.tip).dot(start.tangent) < 0.0 &&
+           (next.tip - start.tip).dot(start.tangent) >= 0.0 &&
+           (next.tip - start.tip).norm() <= 2.0 * h && (cur.tip - start.tip).norm() <= 2.0 * h;
+  }
+
+  // The UV box's cells, each way, scanned for the roots of lines that cross no side of the face.
+  static constexpr int kSeedGrid = 48;
+
+  // The strategy's function with value 0 (g + value: a plane's normal . tip or . contact point,
+  // a guide's offset) at the nodes of a kSeedGrid grid over the UV box, for one feed orientation
+  // (NaN off the face or where nothing evaluates); computed once per face.
+  const std::vector<double>& SeedGrid(const PassConstraint& constraint) const {
+    std::vector<double>& grid = seed_grid_[constraint.feed_sign > 0 ? 0 : 1];
+    if (!grid.empty()) return grid;
+    PassConstraint zero = constraint;
+    zero.value = 0.0;
+    const PassEvaluator e(face_, tool_, orientation_, side_, zero);
+    ContactPoint c;
+    ForGrid(kSeedGrid, false, [&](const Eigen::Vector2d& uv) {
+      grid.push_back(face_.Inside(uv.x(), uv.y()) && Evaluates(e, uv, &c) ? c.g : NAN);
+    });
+    return grid;
+  }
+
+  // Whether two traces between the same ends go the same way (not round the two sides of a
+  // section cut at a seam): the middle of one's trail lies on the other's.
+  bool SameWay(const Candidate& a, const Candidate& b) const {
+    if (b.trail.empty()) return true;
+    const Eigen::Vector3d& middle = b.trail[b.trail.size() / 2];
+    const double near = spec_.newton.max_step_mm;
+    for (const Eigen::Vector3d& q : a.trail) {
+      if ((q - middle).squaredNorm() < near * near) return true;
+    }
+    return false;
+  }
+
+  // Whether a pass of line `line` traced so far went through contact point p.
+  bool Traced(int line, const Eigen::Vector3d& p, const std::vector<Candidate>& found) const {
+    const double near = spec_.newton.max_step_mm;
+    for (const Candidate& c : found) {
+      if (c.line != line) continue;
+      for (const Eigen::Vector3d& q : c.trail) {
+        if ((q - p).squaredNorm() < near * near) return true;
+      }
+    }
+    return false;
+  }
+
+  // The passes of a plane or guide line that crosses no side of the face: a closed section (a
+  // plane cutting a sphere in a circle that stays on it), or one that ends at poles (collapsed
+  // edges of the UV box, which the boundary scan skips). The grid's cell sides are scanned for
+  // the line's roots; from a root no pass of the line went through, the line is traced backwards:
+  // if it comes back to the root it is a closed section, traced from there (and ending there);
+  // otherwise the pass starts where the backward trace ended, unless a pass of the line already
+  // starts or ends there (a line whose trace stopped where the tool could not go on).
+  void FindInteriorPasses(int line, const PassConstraint& constraint,
+                          std::vector<Candidate>* out) const {
+    const std::vector<double>& grid = SeedGrid(constraint);
+    const PassEvaluator e(face_, tool_, orientation_, side_, constraint);
+    const auto node = [&](int i, int j) {
+      return Eigen::Vector2d(face_.U0() + (face_.U1() - face_.U0()) * i / kSeedGrid,
+                             face_.V0() + (face_.V1() - face_.V0()) * j / kSeedGrid);
+    };
+    const auto value = [&](int i, int j) {
+      return grid[static_cast<std::size_t>(i * (kSeedGrid + 1) + j)] - constraint.value;
+    };
+    for (int i = 0; i <= kSeedGrid; ++i) {
+      for (int j = 0; j <= kSeedGrid; ++j) {
+        for (const auto& [di, dj] : {std::pair{1, 0}, std::pair{0, 1}}) {
+          if (i + di > kSeedGrid || j + dj > kSeedGrid) continue;
+          const double ga = value(i, j), gb = value(i + di, j + dj);
+          if (!std::isfinite(ga) || !std::isfinite(gb) || (ga <= 0.0) == (gb <= 0.0)) continue;
+          // The root on this side of the cell: regula falsi (Illinois) on the side's parameter.
+          const Eigen::Vector2d a = node(i, j), b = node(i + di, j + dj);
+          double ta = 0.0, tb = 1.0, fa = ga, fb = gb;
+          int kept = 0;  // which end stayed the last time (-1: b, +1: a)
+          ContactPoint r;
+          bool ok = false;
+          for (int it = 0; it < 60; ++it) {
+            const double t = (ta * fb - tb * fa) / (fb - fa);
+            if (e.Evaluate(a + (b - a) * t, &r) != EvalStatus::kOk) break;
+            if (std::abs(r.g) <= 1e-9 || tb - ta <= 1e-15) {
+              ok = true;
+              break;
+            }
+            if ((r.g <= 0.0) == (fa <= 0.0)) {
+              ta = t, fa = r.g;
+              if (kept == -1) fb *= 0.5;
+              kept = -1;
+            } else {
+              tb = t, fb = r.g;
+              if (kept == 1) fa *= 0.5;
+              kept = 1;
+            }
+          }
+          if (!ok || !e.Inside(r.uv) || Traced(line, r.p, *out)) continue;
+          TraceFromSeed(line, e, r, out);
+        }
+      }
+    }
+  }
+
+  // FindInteriorPasses from root r of line `line` (evaluator e).
+  void TraceFromSeed(int line, const PassEvaluator& e, const ContactPoint& r,
+                     std::vector<Candidate>* out) const {
+    PassConstraint reversed = e.Constraint();
+    reversed.feed_sign = -reversed.feed_sign;
+    const PassEvaluator back_e(face_, tool_, orientation_, side_, reversed);
+    Candidate back;
+    back.line = line;
+    back.constraint = reversed;
+    if (back_e.Evaluate(r.uv, &back.start, r.guide_t) != EvalStatus::kOk) return;
+    Trace(back_e, &back, &back.start);
+    Candidate cand;
+    cand.line = line;
+    cand.constraint = e.Constraint();
+    if (back.closed) {
+      cand.start = r;
+      Trace(e, &cand, &cand.start);
+    } else {
+      // (The same point in (u, v) too: a section cut at a seam has two passes between the same
+      // two points of it.)
+      const double box = std::hypot(face_.U1() - face_.U0(), face_.V1() - face_.V0());
+      const auto same = [&](const ContactPoint& p) {
+        return (p.tip - back.end.tip).norm() < 1e-3 && (p.uv - back.end.uv).norm() < 1e-3 * box;
+      };
+      for (const Candidate& other : *out) {
+        if (other.line == line && (same(other.start) || same(other.end))) return;
+      }
+      if (e.Evaluate(back.end.uv, &cand.start, back.end.guide_t) != EvalStatus::kOk) return;
+      Trace(e, &cand);
+    }
+    cand.order = IsGuide() ? cand.start.guide_t : cand.start.tip.dot(Direction(cand.constraint));
+    out->push_back(std::move(cand));
+  }
+
+  // A uv line from a collapsed edge of the UV box (a sphere's pole: the boundary scan skips it,
+  // and the line has no root on the face's sides): its pass starts at the pole, at the first
+  // parameter off it (by doubling from 1e-9 of the box) where the normal is defined.
+  void FindPoleStart(int line, const PassConstraint& constraint,
+                     std::vector<Candidate>* out) const {
+    const int k = constraint.kind == PassConstraint::Kind::kIsoV ? 0 : 1;  // the running one
+    const double lo = k == 0 ? face_.U0() : face_.V0(), hi = k == 0 ? face_.U1() : face_.V1();
+    const double from = constraint.feed_sign > 0 ? lo : hi;
+    const double inward = constraint.feed_sign > 0 ? 1.0 : -1.0;
+    Eigen::Vector2d uv;
+    uv[k] = from;
+    uv[1 - k] = constraint.value;
+    geometry::SurfaceDerivatives d;
+    face_.D2(uv.x(), uv.y(), &d);
+    if (!(std::min(d.su.norm(), d.sv.norm()) < 1e-9 * std::max(d.su.norm(), d.sv.norm()))) {
+      return;
+    }
+    const PassEvaluator e(face_, tool_, orientation_, side_, constraint);
+    Candidate cand;
+    cand.line = line;
+    cand.constraint = constraint;
+    for (double t = 1e-9;; t *= 2.0) {
+      if (t > 1e-3) return;
+      uv[k] = from + inward * t * (hi - lo);
+      if (e.Evaluate(uv, &cand.start) == EvalStatus::kOk) break;
+    }
+    if (!e.Inside(cand.start.uv)) return;
+    for (const Candidate& other : *out) {
+      if (other.line == line && (other.start.tip - cand.start.tip).norm() < 1e-3) return;
+    }
+    Trace(e, &cand);
+    cand.order = 0.0;
+    out->push_back(std::move(cand));
   }
 
   // The last point inside the face on the way from `inside` (sign +1: along the travel) towards a
@@ -457,7 +650,8 @@ class Builder {
   // the contact point is marched along the strategy's line on the face (MarchContact: the tool's
   // path may fold back there, where the tool's curvature exceeds the face's); each end of a gap is
   // found to 1/4096 of a step.
-  void Trace(const PassEvaluator& e, Candidate* cand) const {
+  // With `loop`, a closed section traced from that point: the trace ends when it comes back to it.
+  void Trace(const PassEvaluator& e, Candidate* cand, const ContactPoint* loop = nullptr) const {
     const bool skip = spec_.on_gouge == StrategySpec::OnGouge::kSkip;
     ContactPoint cur = cand->start, next;
     double s = 0.0;
@@ -532,19 +726,67 @@ class Builder {
     // The line cannot be followed on from cur inside a gap: the crossing ends there, and what lies
     // beyond is traced from its other end (plane strategies) or left out.
     const auto end_in_gap = [&] {
+      // A uv line is traced from one end only: what lies past here to where it leaves the face
+      // is left out too.
+      if (!IsPlane()) gap->contact_mm += RestOfIsoLine(cur, gap_dir);
       close_gap(cur, s, false);
       cand->end = cur;
       cand->length = s;
     };
     if (!fits(cur, s)) open_gap(cur, s);
     const double full = spec_.newton.max_step_mm;
-    double h = full;
+    double h = full, gap_step = full;
     for (long k = 0;; ++k) {
       if (k > 4000000)
         Fail(cand->line, cand->constraint, s, cur.uv, "the pass never leaves the face");
+      cand->trail.push_back(cur.p);
       if (gap) {
         Eigen::Vector2d dir = gap_dir;
-        if (!MarchContact(e, cur, full, &dir, &next) || !e.Inside(next.uv)) return end_in_gap();
+        const bool marched = MarchContact(e, cur, gap_step, &dir, &next);
+        const double su = cur.dp.col(0).norm(), sv = cur.dp.col(1).norm();
+        const bool by_pole = std::min(su, sv) < 0.05 * std::max(su, sv);
+        if (!by_pole && (!marched || !e.Inside(next.uv))) {
+          // The line leaves the face within the step: left out up to where it does (bisection
+          // on the step, to 1/4096 of it).
+          double lo = 0.0, hi = gap_step;
+          ContactPoint last = cur, p;
+          for (int i = 0; i < 12; ++i) {
+            const double mid = 0.5 * (lo + hi);
+            Eigen::Vector2d d = gap_dir;
+            if (MarchContact(e, cur, mid, &d, &p) && e.Inside(p.uv)) {
+              lo = mid, last = p;
+            } else {
+              hi = mid;
+            }
+          }
+          gap->contact_mm += (last.p - cur.p).norm();
+          s += (last.tip - cur.tip).norm();
+          cur = last;
+          return end_in_gap();
+        }
+        if (!marched || !e.Inside(next.uv)) {
+          // Next to a pole, shorter steps up to it, then across it as the trace bridges it.
+          if (gap_step > full / 1024.0) {
+            gap_step *= 0.5;
+            continue;
+          }
+          Bridge pole;
+          if (!AcrossPole(e, cur, s, &pole)) return end_in_gap();
+          gap->contact_mm += (pole.exit.p - cur.p).norm();
+          s = pole.s_exit;
+          cur = pole.exit;
+          gap_dir = cur.duv.normalized();
+          gap_step = full;
+          continue;
+        }
+        if (loop && Closes(*loop, cur, next, full)) {
+          // Round a closed section inside the stretch: it ends where the section started.
+          gap->contact_mm += (loop->p - cur.p).norm();
+          s += (loop->tip - cur.tip).norm();
+          cur = *loop;
+          cand->closed = true;
+          return end_in_gap();
+        }
         // Back where the gap began: the line's contact points close a loop here (in a valley
         // narrower than the tool, where it touches on both sides), and the march would go round
         // it for ever. The line is not followed past it.
@@ -552,6 +794,14 @@ class Builder {
           return end_in_gap();
         }
         const double chord = (next.tip - cur.tip).norm();
+        if (gap->stuck && fits(next, s + chord)) {
+          s += chord;
+          gap->contact_mm += (next.p - cur.p).norm();
+          cur = next;
+          close_gap(cur, s, true);
+          h = full / 1024.0;
+          continue;
+        }
         if (fits(next, s + chord)) {
           // The tool fits again: the next piece starts where it does, traced on from there.
           const ContactPoint from = cur;
@@ -584,7 +834,7 @@ class Builder {
           continue;
         }
         Bridge piece;
-        const bool top = OverTop(e, cur, s, &piece);
+        const bool top = OverTop(e, cur, s, &piece) || OverCrest(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
           // Over a top the bottom's disc rides the chord: checked along it like any step.
           for (int i = 1; i < 8 && top; ++i) {
@@ -613,12 +863,22 @@ class Builder {
                       spec_.newton.tolerance_mm, h, std::abs(1.0 / cur.concave_curvature),
                       cur.n.dot(cur.axis))
                 : EvalStatusText(status);
+        if (!IsPlane() && NearPole(cur)) {
+          // A uv line ends at a pole, as at a side of the face.
+          cand->end = cur;
+          cand->length = s;
+          return;
+        }
         if (skip && (status == EvalStatus::kOk || flat)) {
-          // A flat bottom resting on the face away from the strategy's contact point (a top on
-          // a uv or plane_cc line): the line ends here, said so.
+          // A flat bottom resting on the face away from the strategy's contact point (a saddle
+          // on a uv or plane_cc line): plane strategies trace the line's far side from its other
+          // end, so the line ends here, said so; a uv line goes on by its contact point to where
+          // the tool fits again.
           why = stuck;
           open_gap(cur, s);
-          return end_in_gap();
+          if (IsPlane()) return end_in_gap();
+          gap->stuck = true;
+          continue;
         }
         Fail(cand->line, cand->constraint, s, cur.uv, stuck);
       }
@@ -648,6 +908,14 @@ class Builder {
         s += arc;
         cand->end = end;
         cand->length = s;
+        return;
+      }
+      if (loop && Closes(*loop, cur, next, h)) {
+        // Round a closed section: it ends exactly where it started.
+        s += ArcFromChord((loop->tip - cur.tip).norm(), cur.tangent, loop->tangent);
+        cand->end = *loop;
+        cand->length = s;
+        cand->closed = true;
         return;
       }
       if (!fits(next, s + h)) {
@@ -693,12 +961,16 @@ class Builder {
 
   // Arc length between the samples of the rule's axis a law is fitted to, mm (at most).
   static constexpr double kAxisSampleMm = 0.04;
+  // The law's knot spans to start with, at most (mm).
+  static constexpr double kAxisSpanMm = 20.0;
   // A knot span of the law is not split below this (mm): the axis cannot be smoothed within the
   // tolerance then.
   static constexpr double kMinAxisSpanMm = 0.5;
   // The fit aims at this fraction of the tolerance at its samples; the check between the
   // smoothed pass's points holds to the whole tolerance.
   static constexpr double kAxisFitAim = 0.8;
+  // Halvings of the smoothing's range of 22 decades: to 1.4 % of a decade.
+  static constexpr int kSmoothingBisections = 12;
 
   [[noreturn]] void FailSmoothing(const SurfacePass& pass, double s, const Eigen::Vector2d& uv,
                                   const std::string& what) const {
@@ -710,11 +982,15 @@ class Builder {
         orientation_.axis_tolerance_rad * 180.0 / M_PI, what);
   }
 
-  // The quintic law closest to the samples with knots refined (in the middle of every span
-  // where a sample is more than `aim` off) until every sample is within it.
+  // The quintic law with knots refined (in the middle of every span where a sample is more than
+  // `aim` off the least-squares fit) until every sample can be within it, then smoothed as much
+  // as that allows (Smoothest).
   AxisLaw FitLaw(const SurfacePass& pass, const std::vector<double>& s,
                  const std::vector<Eigen::Vector3d>& axes, double aim) const {
-    std::vector<double> breaks{s.front(), s.back()};
+    // Equal spans of at most kAxisSpanMm to start with: room for the smoothing to shape the law.
+    const int m = std::max(1, static_cast<int>(std::ceil((s.back() - s.front()) / kAxisSpanMm)));
+    std::vector<double> breaks;
+    for (int i = 0; i <= m; ++i) breaks.push_back(s.front() + (s.back() - s.front()) * i / m);
     for (;;) {
       AxisLaw law = FitAxisLaw(s, axes, breaks);
       std::vector<bool> off(breaks.size() - 1, false);
@@ -727,7 +1003,7 @@ class Builder {
         if (dev > aim) off[span] = any = true;
         if (dev > worst) worst = dev, worst_s = s[i];
       }
-      if (!any) return law;
+      if (!any) return Smoothest(s, axes, breaks, aim, std::move(law));
       std::vector<double> refined{breaks.front()};
       for (std::size_t j = 0; j + 1 < breaks.size(); ++j) {
         if (off[j]) {
@@ -744,6 +1020,38 @@ class Builder {
       }
       breaks = std::move(refined);
     }
+  }
+
+  // The law on `breaks` with the largest smoothing (FitAxisLaw) that keeps every sample within
+  // `aim`: of the laws that follow the rule as closely, the one whose axis turns most evenly.
+  // `plain` is the unsmoothed law, within `aim`.
+  static AxisLaw Smoothest(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& axes,
+                           const std::vector<double>& breaks, double aim, AxisLaw plain) {
+    const auto within = [&](const AxisLaw& law) {
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        if (geometry::Angle(law.At(s[i]), axes[i]) > aim) return false;
+      }
+      return true;
+    };
+    // Bisection on log10(smoothing), mm^6, between one that holds and one that does not.
+    double lo = -8.0, hi = 14.0;
+    AxisLaw best = std::move(plain);
+    {
+      AxisLaw at_lo = FitAxisLaw(s, axes, breaks, std::pow(10.0, lo));
+      if (!within(at_lo)) return best;
+      best = std::move(at_lo);
+    }
+    for (int k = 0; k < kSmoothingBisections; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      AxisLaw law = FitAxisLaw(s, axes, breaks, std::pow(10.0, mid));
+      if (within(law)) {
+        lo = mid;
+        best = std::move(law);
+      } else {
+        hi = mid;
+      }
+    }
+    return best;
   }
 
   // `exact` with its axis smoothed (SmoothAxes); its start and end contact points in `start`
@@ -965,6 +1273,29 @@ class Builder {
     out->insert(out->end(), found.begin(), found.end());
   }
 
+  // The length of the iso-parametric line through `from` (a uv line's contact point), from it in
+  // the direction `dir` in (u, v) to where it first leaves the face, mm: the chords of 1024
+  // steps of the parameter to the UV box's side.
+  double RestOfIsoLine(const ContactPoint& from, const Eigen::Vector2d& dir) const {
+    const int k = spec_.along_u ? 0 : 1;
+    if (!(std::abs(dir[k]) > 0.0)) return 0.0;
+    const double end =
+        dir[k] > 0.0 ? (k == 0 ? face_.U1() : face_.V1()) : (k == 0 ? face_.U0() : face_.V0());
+    constexpr int kSteps = 1024;
+    Eigen::Vector2d uv = from.uv;
+    Eigen::Vector3d last = from.p;
+    geometry::SurfaceDerivatives d;
+    double length = 0.0;
+    for (int i = 1; i <= kSteps; ++i) {
+      uv[k] = from.uv[k] + (end - from.uv[k]) * i / kSteps;
+      if (!face_.Inside(uv.x(), uv.y())) break;
+      face_.D2(uv.x(), uv.y(), &d);
+      length += (d.p - last).norm();
+      last = d.p;
+    }
+    return length;
+  }
+
   // One step of about `h` mm of the contact point along the strategy's line on the face (not of
   // the tool's tip: this one goes on where the tip's path folds back), from `from`, in the
   // direction `dir` in (u, v) (updated to the line's direction there). False if the line cannot be
@@ -981,7 +1312,7 @@ class Builder {
     ContactPoint c;
     for (int it = 0; it < 20; ++it) {
       if (!face_.InBox(uv.x(), uv.y())) return false;
-      if (e.Evaluate(uv, &c, from.guide_t) != EvalStatus::kOk) return false;
+      if (!Evaluates(e, uv, &c, from.guide_t)) return false;
       if (std::abs(c.g) <= spec_.newton.tolerance_mm) {
         *to = c;
         *dir = t;
@@ -992,6 +1323,88 @@ class Builder {
       uv -= c.dg * (c.g / n2);
     }
     return false;
+  }
+
+  // Whether the point of the face at uv gives a contact point: evaluated, or sitting flat on a
+  // top where the strategy holds the contact point (kFlatContact: the tip on the contact point,
+  // one of the places the tool may stand there, checked like any other).
+  static bool Evaluates(const PassEvaluator& e, const Eigen::Vector2d& uv, ContactPoint* out,
+                        double guide_hint = std::numeric_limits<double>::quiet_NaN()) {
+    const EvalStatus st = e.Evaluate(uv, out, guide_hint);
+    return st == EvalStatus::kOk || (st == EvalStatus::kFlatContact &&
+                                     e.Constraint().kind != PassConstraint::Kind::kPlaneCl);
+  }
+
+  // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
+  // nose on a fixed axis comes onto a top or a crest of the face along a strategy line that
+  // holds the contact point (uv, plane_cc, leading_line), the piece over it (Bridge). The contact
+  // point stays on the crest while the bottom slides across it: the tip runs straight at the
+  // crest's height from where it stands on this side (R from the crest, as the contact point
+  // comes onto it) to where it stands on the far side, as the contact point leaves it. Every tool
+  // position of that chord is at most R from the crest point, so the bottom keeps touching it.
+  // False if this is not such a place: another tool, orientation or strategy, no point ahead on
+  // the line where the normal's part across the axis turns over, or a face that does not bend
+  // away from the tool all round there (a saddle, a valley: the bottom would rest on two places).
+  bool OverCrest(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
+    const PassConstraint& c = e.Constraint();
+    if (!(tool_.TorusRadius() > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
+        c.kind == PassConstraint::Kind::kPlaneCl) {
+      return false;
+    }
+    const Eigen::Vector3d a = cur.axis;
+    const Eigen::Vector3d side = cur.n - cur.n.dot(a) * a;
+    if (!(side.norm() > 0.0) || !(cur.duv.norm() > 0.0)) return false;
+    const Eigen::Vector3d w_in = side.normalized();
+    // Which side of the crest a contact point is on: + before it (the bottom's edge on this
+    // side), - past it; 0 sitting flat.
+    const auto before = [&](const ContactPoint& p) { return (p.n - p.n.dot(a) * a).dot(w_in); };
+    // The contact point `length` mm along the line from cur (false: the line cannot be followed).
+    const auto along = [&](double length, ContactPoint* out) {
+      Eigen::Vector2d dir = cur.duv.normalized();
+      return MarchContact(e, cur, length, &dir, out);
+    };
+    // The first point past the crest, by doubling from 1e-4 mm (the trace's last step), at most
+    // a tool radius ahead.
+    constexpr double kPast = 1e-4;
+    double lo = 0.0, hi = kPast;
+    ContactPoint p;
+    for (;; hi *= 2.0) {
+      if (hi > tool_.radius || !along(hi, &p)) return false;
+      if (before(p) < 0.0) break;
+      lo = hi;
+    }
+    // The crest between: bisection on the contact's path to 1e-12 mm.
+    ContactPoint top = p;
+    while (hi - lo > 1e-12) {
+      const double mid = 0.5 * (lo + hi);
+      if (!along(mid, &p)) return false;
+      if (before(p) > 0.0) {
+        lo = mid;
+      } else {
+        hi = mid, top = p;
+      }
+    }
+    geometry::SurfaceDerivatives d;
+    face_.D2(top.uv.x(), top.uv.y(), &d);
+    if (CurvatureTowards(d, top.n) > 1e-9 || top.n.dot(a) < 1.0 - 1e-9) return false;
+    // The contact point leaving the crest on the far side: the first, from kPast beyond it on,
+    // whose tip the contact point fixes.
+    ContactPoint exit;
+    double past = hi;
+    for (;; past *= 2.0) {
+      if (past > tool_.radius || !along(past + kPast, &exit)) return false;
+      if (e.Evaluate(exit.uv, &exit, cur.guide_t) == EvalStatus::kOk && before(exit) < 0.0) break;
+    }
+    if (!e.Inside(exit.uv) || exit.tangent.dot(cur.tangent) < 0.0) return false;
+    piece->entry = cur;
+    piece->exit = exit;
+    piece->top_uv = top.uv;
+    piece->top = top.p;
+    piece->tip_in = cur.tip;
+    piece->direction = (exit.tip - cur.tip).normalized();
+    piece->s_start = piece->s_in = s;
+    piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
+    return true;
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
@@ -1025,8 +1438,12 @@ class Builder {
       const Eigen::Vector3d nv = d.suv.cross(d.sv) + d.su.cross(d.svv);
       Eigen::Matrix2d j;
       j << nu.dot(e1), nv.dot(e1), nu.dot(e2), nv.dot(e2);
-      // A crest (the top is a line) leaves j singular: the least-norm step to it.
-      uv -= j.completeOrthogonalDecomposition().solve(f);
+      // A crest (the top is a line) leaves j singular: the least-norm step to it. Along a level
+      // crest j's column is rounding noise, which must not count as rank (the step would slide
+      // along the crest, to the top of another chord).
+      Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix2d> cod;
+      cod.setThreshold(1e-9);
+      uv -= cod.compute(j).solve(f);
     }
     if (!found || (d.p - cur.p).norm() > 1e-2) return false;
     const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(side_);
@@ -1077,8 +1494,8 @@ class Builder {
   // on the parameter line that leaves it the way the contact point came in. False if `cur` is not
   // at such an edge.
   bool AcrossPole(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
+    if (!NearPole(cur)) return false;
     const double su = cur.dp.col(0).norm(), sv = cur.dp.col(1).norm();
-    if (!(std::min(su, sv) < 1e-3 * std::max(su, sv))) return false;
     // The pole's parameter: the UV box edge the collapsing direction's other parameter is near.
     const bool u_collapses = su < sv;  // then the pole is an edge v = const, meridians u = const
     const double along = u_collapses ? cur.uv.y() : cur.uv.x();
@@ -1122,6 +1539,13 @@ class Builder {
     piece->s_start = piece->s_in = s;
     piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
     return true;
+  }
+
+  // Whether contact point c is next to a collapsed edge of the (u, v) parametrization (a pole: one
+  // of S_u, S_v nearly vanishes there).
+  static bool NearPole(const ContactPoint& c) {
+    const double su = c.dp.col(0).norm(), sv = c.dp.col(1).norm();
+    return std::min(su, sv) < 1e-3 * std::max(su, sv);
   }
 
   // Whether the tool moved straight from a to b, its axis turning as a link's straight move turns
@@ -1316,6 +1740,8 @@ class Builder {
   double lo_ = 0.0, hi_ = 0.0;
   // Why the last pass that could not start from a root was refused (none: no such pass).
   mutable std::optional<EvalStatus> refused_;
+  // SeedGrid's values, for the feed along and against the strategy's direction.
+  mutable std::vector<double> seed_grid_[2];
 };
 
 }  // namespace

@@ -143,15 +143,21 @@ EvalStatus PassEvaluator::EvaluateAt(const Eigen::Vector2d& uv, double at_s, Con
   const Vec3J a =
       on_law ? Vec3J(law_->At(at_s, &law_turn).cast<Jet>()) : Vec3J(ToolAxis(orientation_, n, f));
   Vec3J tip;
+  bool flat = false;  // sitting flat where the contact point does not fix the tip
   if (!geometry::TipFromContact(tool_, s, n, a, &tip)) {
     // Sitting flat. Where the face is flat too (a plane across the axis), the whole bottom
     // touches and the tool is placed with its tip on the contact point; at a top (the face
-    // bends away) the contact point does not fix the tip: the builder's Bridge.
+    // bends away) the contact point does not fix the tip: the builder's Bridge. A strategy that
+    // holds the contact point still gets its residual there (the tip on the contact point, one
+    // of the places the tool may stand), with kFlatContact.
     const Eigen::Vector3d nv = Value(n);
     const double e = d.su.squaredNorm(), g = d.sv.squaredNorm();
     const double bend = std::max({std::abs(nv.dot(d.suu)) / e, std::abs(nv.dot(d.svv)) / g,
                                   std::abs(nv.dot(d.suv)) / std::sqrt(e * g)});
-    if (!(bend < 1e-9)) return EvalStatus::kFlatContact;
+    flat = !(bend < 1e-9);
+    if (flat && constraint_.kind == PassConstraint::Kind::kPlaneCl) {
+      return EvalStatus::kFlatContact;
+    }
     tip = s + (n - a) * Jet(tool_.corner_radius);
   }
   Jet g;
@@ -223,7 +229,7 @@ EvalStatus PassEvaluator::EvaluateAt(const Eigen::Vector2d& uv, double at_s, Con
   }
   // With the normal on the tool's side: positive bends towards the tool.
   out->concave_curvature = CurvatureTowards(d, out->n);
-  return EvalStatus::kOk;
+  return flat ? EvalStatus::kFlatContact : EvalStatus::kOk;
 }
 
 double CurvatureTowards(const geometry::SurfaceDerivatives& d, const Eigen::Vector3d& n) {
@@ -472,7 +478,9 @@ EvalStatus SurfacePass::Evaluate(const PathState& state, ContactPoint* out) cons
     out->n = f.entry.axis;
     out->tip = f.Tip(state.s);
     out->tangent = f.direction;
-    out->g = eval_.Constraint().normal.dot(out->tip) - eval_.Constraint().value;
+    // The contact point stays on the strategy's line; a plane_cl line holds the tip.
+    const PassConstraint& c = eval_.Constraint();
+    out->g = c.kind == PassConstraint::Kind::kPlaneCl ? c.normal.dot(out->tip) - c.value : 0.0;
     return EvalStatus::kOk;
   }
   return eval_.EvaluateAt({state.u, state.v}, LawS(state.s), out, state.w);

@@ -34,12 +34,14 @@ enum class InverseStatus : std::uint8_t {
   kOutOfTravel,  // the pose needs an axis beyond its travel on every branch
   kUnreachable,  // the machine cannot hold this tool axis at all (e.g. tilted axis on XYZ)
   kBranchJump,   // the only branch within travel is far from the previous positions
+  kSingular,     // a serial arm at (or through) a singularity: `detail` says which
 };
 
 struct InverseResult {
   InverseStatus status = InverseStatus::kOk;
-  int axis = -1;       // the axis concerned, for kOutOfTravel / kBranchJump
-  double value = 0.0;  // its required value (mm or rad)
+  int axis = -1;                 // the axis concerned, for kOutOfTravel / kBranchJump
+  double value = 0.0;            // its required value (mm or rad)
+  const char* detail = nullptr;  // kSingular: which singularity, static text
 };
 
 class Machine {

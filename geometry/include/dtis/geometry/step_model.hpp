@@ -39,6 +39,9 @@ class StepModel {
   const TopoDS_Face& Face(int index) const;
   // The name the file gives face `index` ("" when none).
   const std::string& FaceName(int index) const;
+  // Whether face `index` bounds a solid (or a closed shell): its orientation there says which
+  // side of it the material is on, and its outside is the side of its outward normal.
+  bool BoundsSolid(int index) const;
   // The faces the file gives this name, in file order (CAD systems may give a name to several).
   std::vector<int> FacesNamed(const std::string& name) const;
   // What `dtis faces` lists, worked out when asked (the bounding box is an optimisation over the
@@ -51,6 +54,7 @@ class StepModel {
   TopoDS_Shape shape_;
   std::vector<TopoDS_Face> faces_;
   std::vector<std::string> names_;
+  std::vector<bool> bounds_solid_;
 };
 
 // The table `dtis faces` prints.

@@ -32,9 +32,12 @@ struct CompareOptions {
 
 struct VariantResult {
   enum class Kind { kG1, kBSpline, kExact } kind = Kind::kExact;
-  std::string name;  // "G1 10 um", "B-spline 1 um", "DTIS (exact surface)"
+  // "G1 10 um", "B-spline 1 um", "DTIS (exact surface)", "DTIS (axis within 0.1 deg)"
+  std::string name;
   interp::PlannerKind planner = interp::PlannerKind::kVpop;
-  double tolerance_mm = 0.0;   // 0 for the exact surface
+  double tolerance_mm = 0.0;  // 0 for the exact surface
+  // The exact surface with the tool axis smoothed within this (deg); 0: the rule's axis.
+  double axis_tolerance_deg = 0.0;
   long blocks = 0;             // G1 blocks on the passes, or B-spline control points; 0 for DTIS
   double motion_time_s = 0.0;  // the whole program, links included
   double pass_time_s = 0.0;    // on the passes only
@@ -60,7 +63,8 @@ struct CompareResult {
   int passes = 0;
   double path_length_mm = 0.0;
   double sample_step_mm = 0.0;
-  // G1 ..., B-spline ..., DTIS; each with every planner in turn.
+  // G1 ..., B-spline ..., DTIS, then DTIS with the axis smoothed (tilt_yaw jobs); each with every
+  // planner in turn.
   std::vector<VariantResult> variants;
   std::vector<std::string> notes;  // what was not written, and why
 };
@@ -71,8 +75,10 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options = {});
 // A variant as plots and headings name it: "DTIS (exact surface) (vpop)".
 std::string VariantLabel(const VariantResult& variant);
 
-// The exact-surface variant planned with `planner` (the last exact variant when none was).
-const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner);
+// The exact-surface variant with the axis smoothed within `axis_tolerance_deg` (0: the rule's)
+// planned with `planner` (the last such variant when none was).
+const VariantResult& ExactVariantOf(const CompareResult& result, interp::PlannerKind planner,
+                                    double axis_tolerance_deg = 0.0);
 
 // The comparison table: its column names, and one variant's row.
 std::vector<std::string> CompareHeader();

@@ -7,10 +7,17 @@
 //   xyzac-head-table, xyzbc-head-table
 //                the spindle head tilts (A about X or B about Y, about a pivot head_length above
 //                the tool tip), C turns the table; LinuxCNC's maxkins is an xyzbc-head-table.
+//   serial-arm   a six-joint serial arm (genserkins, pumakins): joints J1..J6, each a rotation
+//   about
+//                its axis after a fixed transform from the previous joint's frame (a chain of joint
+//                frames, or Craig's modified Denavit-Hartenberg parameters); one joint is locked,
+//                since the rotation about a rotating tool's axis is free (docs/robots.md).
 // Every rotary angle is right-handed about its axis unless a direction of -1 reverses it.
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -39,6 +46,7 @@ enum class Kinematics : std::uint8_t {
   kXyzbcTrt,
   kXyzacHeadTable,
   kXyzbcHeadTable,
+  kSerialArm,
 };
 
 // The name machine files use ("xyzbc-trt").
@@ -48,9 +56,38 @@ const char* KinematicsName(Kinematics k);
 std::vector<std::string> KinematicsNames();
 // The kinematics a machine file names, if it is one of KinematicsNames().
 std::optional<Kinematics> KinematicsNamed(std::string_view name);
-// The machine's axes in order: "XYZ", "XYZAC" or "XYZBC" (the tilting axis, then C).
+// The machine's axes in order: "XYZ", "XYZAC" or "XYZBC" (the tilting axis, then C); "" for an
+// arm, whose joints are J1..J6.
 const char* AxisLetters(Kinematics k);
 bool IsHeadTable(Kinematics k);
+
+// A six-joint serial arm. Joint i turns by q[i] about `axis[i]` after the fixed transform
+// `fixed[i]` from joint i-1's frame (the base frame for J1); the flange is J6's frame. Lengths mm,
+// angles rad.
+struct ArmDescription {
+  // How the file gave the chain, to write it back the same way.
+  enum class Form : std::uint8_t { kFrames, kDh };
+  Form form = Form::kFrames;
+  // kFrames: joint i's origin and roll-pitch-yaw (URDF's: R = Rz(yaw) Ry(pitch) Rx(roll)) in the
+  // previous joint's frame, and its axis there.
+  std::array<Eigen::Vector3d, 6> origin{}, rpy{}, axis{};
+  // kDh: Craig's modified parameters, as LinuxCNC's genserkins reads them: joint i's frame is
+  // RotX(alpha[i]) TransX(a[i]) RotZ(theta[i] + q[i]) TransZ(d[i]) from the previous one.
+  std::array<double, 6> a{}, alpha{}, d{}, theta{};
+  // The tool tip in the flange frame and the tool axis there (from the tip towards the spindle).
+  Eigen::Vector3d tool_tip = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tool_axis = -Eigen::Vector3d::UnitZ();
+  // The part frame (the frame of the poses) in the arm's base frame: origin and roll-pitch-yaw.
+  Eigen::Vector3d part_origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d part_rpy = Eigen::Vector3d::Zero();
+  int locked_joint = 5;  // 0-based: J6
+  double locked_at = 0.0;
+  // The posture the first pose of a path is reached from; it picks the configuration (shoulder,
+  // elbow, wrist) every later pose keeps.
+  std::array<double, 6> home{};
+  // A pose nearer a singularity than this (the sine of the angle that vanishes there) is refused.
+  double singular_sine = 1e-4;
+};
 
 // Everything a machine is built from: what machine files and LinuxCNC INI files are read into, and
 // what `dtis machine import` writes back out. Units: mm, s, rad.
@@ -68,6 +105,7 @@ struct MachineDescription {
   // ? +1 : -1, C = -1).
   double head_direction = 1.0;
   double c_direction = 1.0;
+  ArmDescription arm;  // serial-arm
   KinematicsOptions options;
 };
 
@@ -117,6 +155,47 @@ class HeadTableMachine final : public FiveAxisMachine {
   using FiveAxisMachine::FiveAxisMachine;
   InverseResult Inverse(const Pose& pose, const AxisVector* previous, AxisVector* q) const override;
   Pose Forward(const AxisVector& q) const override;
+};
+
+// True when the tool lies on J6's axis (its tip on it, its axis along it): J6 then only turns the
+// tool about its own axis, the rotation a rotating tool leaves free, and J6 is the joint to lock.
+bool ToolOnLastAxis(const ArmDescription& arm);
+
+// A six-joint serial arm with one joint locked: poses (tool tip and axis, 5 numbers) to the five
+// free joints by Newton's method from the previous joints (from the home posture, followed along a
+// straight blend of poses, for the first), so that the configuration never flips between
+// setpoints; a pose at a shoulder, elbow or wrist singularity, or one whose joints would change
+// configuration from the previous ones, is refused naming which.
+class SerialArmMachine final : public Machine {
+ public:
+  explicit SerialArmMachine(const MachineDescription& d);
+  const std::string& Name() const override { return name_; }
+  std::span<const Axis> Axes() const override { return axes_; }
+  InverseResult Inverse(const Pose& pose, const AxisVector* previous, AxisVector* q) const override;
+  Pose Forward(const AxisVector& q) const override;
+
+  // The flange's pose in the arm's base frame at joints q.
+  Eigen::Isometry3d Flange(const AxisVector& q) const;
+  // The signed shoulder, elbow and wrist measures at q (sines: 0 at the singularity, the sign is
+  // the configuration).
+  Eigen::Vector3d Configuration(const AxisVector& q) const;
+
+ private:
+  struct Chain;  // positions and axes of every joint at some q
+  Chain Evaluate(const AxisVector& q) const;
+  // Newton on the free joints from *q towards the tip and axis (base frame); false when it does
+  // not converge.
+  bool Solve(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, AxisVector* q) const;
+  InverseResult Check(const AxisVector& q, const AxisVector* previous) const;
+
+  std::string name_;
+  std::vector<Axis> axes_;
+  ArmDescription arm_;
+  std::array<Eigen::Isometry3d, 6> fixed_;
+  std::array<Eigen::Vector3d, 6> axis_;
+  Eigen::Isometry3d part_;  // part frame -> base frame
+  double reach_mm_ = 1.0;   // the sum of the link lengths, to make the shoulder measure a sine
+  KinematicsOptions options_;
 };
 
 std::unique_ptr<Machine> BuildMachine(const MachineDescription& description);

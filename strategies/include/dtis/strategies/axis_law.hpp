@@ -37,10 +37,15 @@ class AxisLaw {
   double shift_ = 0.0;
 };
 
-// Least squares: the quintic with the distinct knots `breaks` (first and last the range's ends,
-// increasing) closest to `axes` at arc lengths `s` (within the range). Each span must hold samples
-// enough (the caller refines knots only where they are); throws std::invalid_argument otherwise.
+// Penalized least squares: the quintic c with the distinct knots `breaks` (first and last the
+// range's ends, increasing) that minimizes
+//   sum_i w_i |c(s_i) - axes_i|^2 + smoothing * integral |c'''(s)|^2 ds,
+// w_i the arc length each sample stands for (both terms are integrals over the pass; smoothing in
+// mm^6). smoothing = 0 is the plain least-squares fit; the larger it is, the smaller the axis'
+// third derivative (what the rotary axes' jerk grows with) and the further from the samples.
+// Each span must hold samples enough (the caller refines knots only where they are); throws
+// std::invalid_argument otherwise.
 AxisLaw FitAxisLaw(const std::vector<double>& s, const std::vector<Eigen::Vector3d>& axes,
-                   const std::vector<double>& breaks);
+                   const std::vector<double>& breaks, double smoothing = 0.0);
 
 }  // namespace dtis::strategies

@@ -68,7 +68,10 @@ struct StrategySpec {
     }
   };
   std::optional<Bounds> bounds;
+  // kAuto: the outside of a face that bounds a solid (`bounds_solid`: its outward normal, from
+  // its orientation in the solid), else the side whose normal points up (+Z) over most of it.
   Side side = Side::kAuto;
+  bool bounds_solid = false;
   OnGouge on_gouge = OnGouge::kSkip;
   // Faces the tool must not go into besides the one it finishes (the part's others): where it
   // would, the tool does not fit, as where it gouges its own face. None when null.

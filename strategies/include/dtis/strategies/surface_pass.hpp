@@ -105,7 +105,9 @@ class PassEvaluator {
   PassEvaluator(const PassEvaluator&) = default;
 
   // guide_hint: leading_line's closest guide parameter near this point (NaN: search the guide).
-  // The tool axis is the orientation rule's.
+  // The tool axis is the orientation rule's. kFlatContact on a line that holds the contact point
+  // (not plane_cl) still fills `out`, with the tip on the contact point (one of the places a flat
+  // bottom sitting on a top may stand).
   EvalStatus Evaluate(const Eigen::Vector2d& uv, ContactPoint* out,
                       double guide_hint = std::numeric_limits<double>::quiet_NaN()) const {
     return EvaluateAt(uv, std::numeric_limits<double>::quiet_NaN(), out, guide_hint);
