@@ -3,9 +3,10 @@
 # compare --report`, a `dtis stream --report` and a `dtis report --job --limiters` must render with
 # no script or console error, hold the expected plots and traces, and show the numbers `dtis verify`
 # prints for the same setpoints, and name the machine and dtis version in their header; the path
-# has a colour bar, no legend's box overlaps a plot's toolbar, and micrometres read µm; with WebGL
-# off every plot is drawn in SVG; `dtis figures` must write every plot as a PNG and an SVG at the
-# size asked for (88 mm at 300 dpi, said in the PNG; the SVG in mm), no text under 9 px (6.75 pt).
+# has a colour bar, no legend's or annotation's box overlaps a plot's toolbar, and micrometres read
+# µm; with WebGL off every plot is drawn in SVG; `dtis figures` must write every plot as a PNG and
+# an SVG at the size asked for (88 mm at 300 dpi, said in the PNG; the SVG in mm), no text under
+# 9 px (6.75 pt).
 # Keeps a screenshot of the 5-axis report and its figures in OUTDIR (default: the current folder,
 # ctest's build/tests).
 # Usage: report.sh DTIS ROOT [OUTDIR]
@@ -60,7 +61,7 @@ check() {
   grep -q "Uncaught" "$work/$name.err" && problem="$problem; uncaught exception: $(grep Uncaught "$work/$name.err" | head -1)"
   [ "$plots" = "$want_plots" ] || problem="$problem; $plots plots, expected $want_plots"
   [ "${colorbars:-0}" -ge 1 ] || problem="$problem; no colour bar on the path"
-  [ "$overlaps" = 0 ] || problem="$problem; $overlaps legends over a plot's toolbar"
+  [ "$overlaps" = 0 ] || problem="$problem; $overlaps plots with a legend or annotation over their toolbar"
   grep -qE '[0-9( ]um([^a-zA-Z]|$)' "$work/$name.text" &&
     problem="$problem; 'um' for µm: $(grep -oE '.{20}[0-9( ]um([^a-zA-Z]|$)' "$work/$name.text" | head -1)"
   [ "${traces:-0}" -ge "$min_traces" ] && [ "${traces:-0}" -le "$max_traces" ] ||

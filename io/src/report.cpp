@@ -314,6 +314,8 @@ const PLOTS = [];  // { name, div, build }, in the order of the page
 const maxOf = a => a.reduce((m, v) => Math.max(m, v), -Infinity);
 const minOf = a => a.reduce((m, v) => Math.min(m, v), Infinity);
 
+// A variant's name with what it says in parentheses on a line of its own, so names fit a column.
+const twoLines = name => name.replace(' (', '<br>(');
 // The comparison: one panel per variant (planners by rows, exports by columns on the page;
 // transposed in print), shared axes, the exact surface's feed in grey under each.
 function compareFeed(print, width) {
@@ -322,12 +324,13 @@ function compareFeed(print, width) {
   const rows = print ? variants.length : planners.length, cols = print ? planners.length : variants.length;
   const cell = (r, col) => print ? [variants[r], planners[col]] : [variants[col], planners[r]];
   const t1 = maxOf(feeds.map(f => maxOf(f.t))), f1 = (print ? 1.6 : 1.06) * maxOf(feeds.map(f => maxOf(f.y)));
-  const layout = baseLayout(print, { t: print ? 16 : 40, l: print ? 54 : 90 }), data = [], annotations = [];
+  // On the page, room for two-line panel titles under the toolbar.
+  const layout = baseLayout(print, { t: print ? 16 : 72, l: print ? 54 : 90 }), data = [], annotations = [];
   const gx = print ? 0.04 : 0.025, gy = print ? 0.06 : 0.12;
   for (let r = 0; r < rows; ++r) for (let col = 0; col < cols; ++col) {
     const [variant, planner] = cell(r, col), k = r * cols + col + 1, xa = 'x' + (k > 1 ? k : ''), ya = 'y' + (k > 1 ? k : '');
     const f = feeds.find(v => v.variant === variant && v.planner === planner);
-    const exact = feeds.find(v => v.planner === planner && v === feeds.filter(w => w.planner === planner).slice(-1)[0]);
+    const exact = feeds.find(v => v.planner === planner && v.exact);
     if (exact && exact !== f) data.push({ type: 'scatter', mode: 'lines', name: exact.name, x: exact.t, y: exact.y, xaxis: xa, yaxis: ya,
       line: { color: '#bbbbbb', width: 1 }, hoverinfo: 'skip' });
     if (f) data.push({ type: 'scatter', mode: 'lines', name: f.name, x: f.t, y: f.y, xaxis: xa, yaxis: ya, line: { color: '#0072B2', width: 1.2 },
@@ -343,7 +346,7 @@ function compareFeed(print, width) {
       showticklabels: col === 0, title: col === 0 ? axisTitle(yTitle) : undefined });
     if (print && f) annotations.push({ text: variant + '<br>' + f.time_s.toFixed(2) + ' s', xref: xa + ' domain', yref: ya + ' domain', x: 1, y: 1,
       xanchor: 'right', yanchor: 'top', align: 'right', showarrow: false, font: { size: PRINT_FONT - 1 } });
-    if (r === 0) annotations.push({ text: print ? planner : variant, xref: 'paper', yref: 'paper', x: (x0 + x1) / 2, y: 1, yanchor: 'bottom', showarrow: false,
+    if (r === 0) annotations.push({ text: print ? planner : twoLines(variant), xref: 'paper', yref: 'paper', x: (x0 + x1) / 2, y: 1, yanchor: 'bottom', showarrow: false,
       font: { size: (print ? PRINT_FONT : SCREEN_FONT) } });
     if (f && !print) annotations.push({ text: f.time_s.toFixed(2) + ' s', xref: xa + ' domain', yref: ya + ' domain', x: 0.98, y: print ? 1 : 0.96, xanchor: 'right', yanchor: 'top',
       showarrow: false, font: { size: (print ? PRINT_FONT : SCREEN_FONT) - 1, color: '#555' } });
@@ -358,9 +361,9 @@ function compareBars(print, width) {
   planners.forEach((p, k) => {
     const mine = feeds.filter(f => f.planner === p);
     for (const [axis, key, digits] of [['y', 'time_s', 2], ['y2', 'motion_dev_um', 2]]) {
-      data.push({ type: 'bar', name: p, legendgroup: p, showlegend: axis === 'y', x: mine.map(f => f.variant), y: mine.map(f => f[key]),
+      data.push({ type: 'bar', name: p, legendgroup: p, showlegend: axis === 'y', x: mine.map(f => twoLines(f.variant)), y: mine.map(f => f[key]),
         xaxis: axis === 'y' ? 'x' : 'x2', yaxis: axis, marker: { color: colors[k % colors.length] },
-        text: mine.map(f => f[key].toFixed(digits)), textposition: 'outside', cliponaxis: false, textfont: { size: (print ? PRINT_FONT : SCREEN_FONT) - 2 } });
+        text: print ? undefined : mine.map(f => f[key].toFixed(digits)), textposition: 'outside', cliponaxis: false, textfont: { size: (print ? PRINT_FONT : SCREEN_FONT) - 2 } });
     }
   });
   const layout = baseLayout(print, { t: print ? 24 : 40, b: print ? 60 : 70 });
@@ -606,12 +609,16 @@ function draw(plot) {
   plot.drawn = true;
   return Plotly.newPlot(div, fig.data, fig.layout, CONFIG);
 }
-// Legends whose box overlaps the plot's toolbar, for a browser's test.
+// Whether a plot's legend or one of its annotations (panel titles, notes) overlaps its toolbar,
+// box against box, for a browser's test.
 function legendOverToolbar(div) {
-  const legend = div.querySelector('.legend'), bar = div.querySelector('.modebar');
-  if (!legend || !bar) return false;
-  const a = legend.getBoundingClientRect(), b = bar.getBoundingClientRect();
-  return a.width > 0 && b.width > 0 && a.left < b.right && b.left < a.right && a.top < b.bottom && b.top < a.bottom;
+  const bar = div.querySelector('.modebar');
+  if (!bar) return false;
+  const b = bar.getBoundingClientRect();
+  return [...div.querySelectorAll('.legend, .annotation')].some(e => {
+    const a = e.getBoundingClientRect();
+    return a.width > 0 && b.width > 0 && a.left < b.right && b.left < a.right && a.top < b.bottom && b.top < a.bottom;
+  });
 }
 
 // Static figures (dtis figures): with #figures=png,svg&width_mm=88&dpi=300 in the address, every
@@ -882,6 +889,7 @@ std::string RenderReport(const ReportInput& in, const std::string& plotly_js) {
       series["name"] = Micro(VariantLabel(v));
       series["variant"] = Micro(v.name);
       series["planner"] = interp::PlannerName(v.planner);
+      series["exact"] = exact;
       series["time_s"] = v.motion_time_s;
       series["pass_time_s"] = v.pass_time_s;
       series["motion_dev_um"] = v.motion_deviation_mm * 1e3;
