@@ -265,6 +265,7 @@ int Run(const RunArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name, *result.machine, result.table, result.verify,
                                              result.limiters, result.compute_s);
     in.passes = result.passes;
+    in.pass_rows = result.pass_rows;
     in.unreachable = result.unreachable_all;
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
     if (html->InPlace()) html->Commit();
@@ -327,6 +328,7 @@ int Compare(const CompareArgs& a) {
     dtis::io::ReportInput in = PlannedReport(job.name + " (compare)", *machine, exact.table,
                                              exact.verify, exact.limiters, exact.compute_s);
     in.passes = result.passes;
+    in.pass_rows = exact.pass_rows;
     in.compare = &result;
     in.shown = dtis::io::VariantLabel(exact);
     html.emplace(a.report).Write(RenderJobReport(job, std::move(in), plotly));
@@ -870,8 +872,9 @@ int main(int argc, char** argv) {
 
   auto* figures = app.add_subcommand(
       "figures",
-      "Draw every plot of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
-      "files for papers, with headless Chromium: the same plots, drawn by the same plotly.js.");
+      "Draw the figures of an HTML report (dtis run/report/compare/stream --report) as PNG and SVG "
+      "files at print size for papers, with headless Chromium: the report's plots, laid out for a "
+      "column (or --width-mm) by the same plotly.js.");
   std::string figures_report, figures_dir;
   dtis::io::FigureOptions fo;
   bool figures_quiet = false;
@@ -881,9 +884,20 @@ int main(int argc, char** argv) {
   figures->add_option("--format", fo.formats, "comma-separated: png, svg, jpeg, webp")
       ->delimiter(',')
       ->capture_default_str();
-  figures->add_option("--width", fo.width_px, "figure width, pixels (heights as in the report)")
+  figures
+      ->add_option("--width-mm", fo.width_mm,
+                   "print width of every figure, mm (88: a column of a two-column paper, 180: a "
+                   "page); heights follow each plot, text is 7 to 8 pt")
       ->capture_default_str()
-      ->check(CLI::Range(200, 8000));
+      ->check(CLI::Range(40.0, 500.0));
+  figures->add_option("--dpi", fo.dpi, "resolution of the PNGs, dots per inch (written in them)")
+      ->capture_default_str()
+      ->check(CLI::Range(72, 1200));
+  figures
+      ->add_option("--pass", fo.pass,
+                   "a surface job's feed figure shows this pass alone (1: the first; the report's "
+                   "selector does the same)")
+      ->check(CLI::PositiveNumber);
   figures->add_flag("-q,--quiet", figures_quiet, "print nothing on success");
 
   auto* stream = app.add_subcommand(

@@ -139,6 +139,16 @@ nlohmann::json ReportData(const std::string& page) {
   return nlohmann::json::parse(page.substr(at + key.size(), end - at - key.size()));
 }
 
+// A report of run `r`: its machine, setpoints and verification.
+ReportInput InputOf(const std::string& title, const RunResult& r) {
+  ReportInput in;
+  in.title = title;
+  in.machine = r.machine.get();
+  in.table = &r.table;
+  in.verify = &r.verify;
+  return in;
+}
+
 // The surface is drawn around the path only; a comparison adds its table and one feed curve per
 // variant.
 TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
@@ -156,11 +166,7 @@ TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
     v.verify = r.verify;
     compare.variants.push_back(v);
   }
-  ReportInput in;
-  in.title = "line";
-  in.machine = r.machine.get();
-  in.table = &r.table;
-  in.verify = &r.verify;
+  ReportInput in = InputOf("line", r);
   in.surface = &mesh;
   in.compare = &compare;
   in.shown = "DTIS (exact surface)";
@@ -168,8 +174,10 @@ TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
   EXPECT_EQ(data["surface"]["x"].size(), 3u);
   EXPECT_EQ(data["surface"]["i"].size(), 1u);
   ASSERT_EQ(data["compare"]["rows"].size(), 2u);
-  EXPECT_EQ(data["compare"]["rows"][0][0], "G1 10 um");
+  // A page writes micrometres as such (the terminal's tables keep "um").
+  EXPECT_EQ(data["compare"]["rows"][0][0], "G1 10 \u00b5m");
   EXPECT_EQ(data["compare"]["header"].size(), CompareHeader().size());
+  EXPECT_EQ(data["compare"]["header"][7], "motion dev (\u00b5m)");
   ASSERT_EQ(data["compare"]["feeds"].size(), 2u);
   // Each feed series names its variant and the planner that planned it.
   EXPECT_EQ(data["compare"]["feeds"][1]["name"], "DTIS (exact surface) (vpop)");
@@ -179,15 +187,118 @@ TEST(Report, DrawsTheFaceAroundThePathAndEveryVariant) {
   EXPECT_NEAR(peak, 5000.0, 1e-6);
 }
 
+// The face is cut to the box around the path plus its margin: a triangle reaching out of it keeps
+// the part inside, whose edge is the box's (not the jagged edge of whole triangles).
+TEST(Report, CutsTheFaceStraightAtTheBoxAroundThePath) {
+  const Job job = LoadJob(test::Source("samples/jobs/line.toml"));  // X from 0 to 100 mm
+  const RunResult r = RunJob(job);
+  const Eigen::Vector3d tip =
+      r.machine
+          ->Forward(
+              FileUnits(*r.machine)
+                  .ToPlanner({r.table.columns[0][0], r.table.columns[1][0], r.table.columns[2][0]}))
+          .tip;
+  // The path's box is 100 mm long: a margin of a quarter of that, 25 mm, all round.
+  geometry::FaceMesh mesh;
+  mesh.vertices = {
+      {0, tip.y() - 1, tip.z()}, {100, tip.y() - 1, tip.z()}, {50, tip.y() + 100, tip.z()}};
+  mesh.triangles = {{0, 1, 2}};
+  ReportInput in = InputOf("line", r);
+  in.surface = &mesh;
+  const nlohmann::json data = ReportData(RenderReport(in, "/* plotly */"));
+  const auto& f = data["surface"];
+  double area = 0.0, top = -HUGE_VAL;
+  for (std::size_t t = 0; t < f["i"].size(); ++t) {
+    Eigen::Vector3d p[3];
+    for (int c = 0; c < 3; ++c) {
+      const int v = f[std::string(1, "ijk"[c])][t];
+      p[c] = Eigen::Vector3d(f["x"][v].get<double>(), f["y"][v].get<double>(),
+                             f["z"][v].get<double>());
+      top = std::max(top, p[c].y());
+    }
+    area += 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
+  }
+  // Below y = tip + 25 the triangle is a trapezoid 26 mm high, 100 mm wide at its base and
+  // 100 * 75 / 101 mm at the cut.
+  EXPECT_NEAR(top, tip.y() + 25.0, 1e-3);
+  EXPECT_NEAR(area, 0.5 * (100.0 + 100.0 * 75.0 / 101.0) * 26.0, 0.05);
+  // Its outline: the base, the two cut sides and the cut, as segments (two points and a gap).
+  EXPECT_EQ(f["outline"]["x"].size(), 4u * 3u);
+}
+
+// How close each axis comes to its limits: the envelope peaks at the verifier's ratio for each
+// derivative, and an axis has periods at a limit exactly when its ratio reaches kAtLimit.
+TEST(Report, LimitUsagePeaksAtTheVerifiersRatios) {
+  const Job job = LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
+  const RunResult r = RunJob(job);
+  ReportInput in = InputOf(job.name, r);
+  const nlohmann::json data = ReportData(RenderReport(in, "/* plotly */"));
+  ASSERT_EQ(data["axes"].size(), r.verify.axes.size());
+  bool some_at_limit = false;
+  for (std::size_t a = 0; a < r.verify.axes.size(); ++a) {
+    const auto& axis = data["axes"][a];
+    const auto& v = r.verify.axes[a];
+    const double ratios[3] = {v.v_ratio, v.a_ratio, v.j_ratio};
+    int d = 0;
+    for (const char* name : {"velocity", "acceleration", "jerk"}) {
+      double peak = 0.0;
+      for (const auto& p : axis["usage"][name]["hi"]) peak = std::max(peak, p.get<double>());
+      EXPECT_NEAR(peak, 100.0 * ratios[d], 1e-4 * peak + 1e-9) << v.name << " " << name;
+      const double share = axis["at_limit"][d];
+      if (ratios[d] >= kAtLimit) {
+        EXPECT_GE(share, 100.0 / static_cast<double>(r.table.Rows())) << v.name << " " << name;
+        some_at_limit = true;
+      } else {
+        EXPECT_EQ(share, 0.0) << v.name << " " << name;
+      }
+      ++d;
+    }
+  }
+  EXPECT_TRUE(some_at_limit) << "a time-optimal plan has an axis at a limit";
+}
+
+// A surface job's feed is drawn along its passes: one span per pass, end to end, as long as the
+// passes, and the time between two spans is a link's.
+TEST(Report, FeedAlongThePassesLeavesTheLinksOut) {
+  const Job job = LoadJob(test::Source("samples/jobs/surface_plane_cl_3axis.toml"));
+  const RunResult r = RunJob(job);
+  ASSERT_GT(r.passes, 10);
+  ASSERT_EQ(r.pass_rows.size(), static_cast<std::size_t>(r.passes));
+  ReportInput in = InputOf(job.name, r);
+  in.limiters = r.limiters;
+  in.pass_rows = r.pass_rows;
+  const nlohmann::json data = ReportData(RenderReport(in, "/* plotly */"));
+  const auto& passes = data["pass_feed"]["passes"];
+  ASSERT_EQ(passes.size(), r.pass_rows.size());
+  double pass_time = 0.0;
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    EXPECT_LT(passes[k]["s0"].get<double>(), passes[k]["s1"].get<double>()) << k;
+    pass_time += passes[k]["t1"].get<double>() - passes[k]["t0"].get<double>();
+    if (k == 0) continue;
+    EXPECT_EQ(passes[k]["s0"], passes[k - 1]["s1"]) << k;
+    EXPECT_GT(passes[k]["t0"].get<double>(), passes[k - 1]["t1"].get<double>()) << k;
+  }
+  // The tip's chords along the passes against the passes' length: shorter, by far less than 0.1 %.
+  const double along = passes.back()["s1"];
+  EXPECT_LE(along, r.path_length_mm * (1 + 1e-9));
+  EXPECT_GT(along, r.path_length_mm * (1 - 1e-3));
+  // Each pass' rows span its motion time but for the periods at rest that end it.
+  EXPECT_NEAR(pass_time, r.pass_motion_s, 4.5 * r.verify.period_s * r.passes);
+  EXPECT_NEAR(data["pass_feed"]["link_time_s"].get<double>(), r.verify.motion_time_s - pass_time,
+              1e-9);
+  // The constraint band covers the passes only, within their span.
+  ASSERT_FALSE(data["pass_feed"]["limiters"]["x"].empty());
+  for (const auto& x : data["pass_feed"]["limiters"]["x"]) {
+    EXPECT_GE(x.get<double>(), 0.0);
+    EXPECT_LE(x.get<double>(), along);
+  }
+}
+
 // The header names what the run is; the report adds the version of dtis that made it and when.
 TEST(Report, HeaderNamesMachineJobPartFaceToolStrategyVersionAndDate) {
   const Job job = LoadJob(test::Source("samples/jobs/surface_tilt10_xyzac.toml"));
   const RunResult r = RunJob(job);
-  ReportInput in;
-  in.title = job.name;
-  in.machine = r.machine.get();
-  in.table = &r.table;
-  in.verify = &r.verify;
+  ReportInput in = InputOf(job.name, r);
   in.about = JobFacts(job, *r.machine);
   const nlohmann::json data = ReportData(RenderReport(in, "/* plotly */"));
   std::map<std::string, std::string> about;
@@ -278,15 +389,48 @@ TEST(Figures, Base64DecodesTheRfcVectors) {
   ExpectError([] { DecodeBase64("Zh=="); }, "malformed");  // non-zero bits after the last byte
 }
 
+// A PNG's pHYs says its resolution: 300 dpi is 11811 dots per metre. The chunk's CRC is the one
+// Python's zlib.crc32 gives for it.
+TEST(Figures, PngsSayTheirDpi) {
+  using namespace std::string_literals;
+  const std::string signature = "\x89PNG\r\n\x1a\n"s;
+  const std::string ihdr = "\0\0\0\x0dIHDR\0\0\0\x01\0\0\0\x01\x08\x00\0\0\0\x3a\x7e\x9b\x55"s;
+  const std::string idat = "\0\0\0\0IDAT\x35\xaf\x06\x1e"s;
+  const std::string iend = "\0\0\0\0IEND\xae\x42\x60\x82"s;
+  const std::string phys =
+      "\0\0\0\x09pHYs\0\0\x2e\x23\0\0\x2e\x23\x01\x78\xa5\x3f\x76"s;  // 300 dpi
+  EXPECT_EQ(PngWithDpi(signature + ihdr + idat + iend, 300), signature + ihdr + phys + idat + iend);
+  // One that had a resolution has the new one only.
+  const std::string old_phys =
+      "\0\0\0\x09pHYs\0\0\x0e\xc4\0\0\x0e\xc4\x01\x95\x2b\x0e\x1b"s;  // 96 dpi
+  EXPECT_EQ(PngWithDpi(signature + ihdr + old_phys + idat + iend, 300),
+            signature + ihdr + phys + idat + iend);
+  ExpectError([] { PngWithDpi("GIF89a", 300); }, "not a PNG");
+  ExpectError([&] { PngWithDpi(signature + ihdr.substr(0, 10), 300); }, "cut short");
+}
+
+TEST(Figures, SvgsCarryTheirSizeInMm) {
+  EXPECT_EQ(
+      SvgInMm(R"(<?xml?><svg class="main-svg" width="333" height="200"><g/></svg>)", 88, 52.9),
+      R"(<?xml?><svg class="main-svg" width="88.00mm" height="52.90mm" viewBox="0 0 333 200"><g/></svg>)");
+  EXPECT_EQ(SvgInMm(R"(<svg width="333" height="200" viewBox="0 0 333 200">)", 88, 52.9),
+            R"(<svg width="88.00mm" height="52.90mm" viewBox="0 0 333 200">)");
+  ExpectError([] { SvgInMm("<svg>", 88, 50); }, "no width and height");
+  ExpectError([] { SvgInMm("<html>", 88, 50); }, "not an SVG");
+}
+
 TEST(Figures, ReadFromTheDomDump) {
   const std::string dom =
-      R"(<div id="figures"><pre class="figure" data-name="path" data-format="png">iVBORw==</pre>)"
+      R"(<div id="figures"><pre class="figure" data-name="path" data-format="png" data-width-mm="88" data-height-mm="70.4">iVBORw==</pre>)"
       R"(<pre class="figure" data-name="axis-X" data-format="svg">PHN2Zy8+</pre></div>)";
   const auto figures = ParseFigures(dom, "r.html");
   ASSERT_EQ(figures.size(), 2u);
   EXPECT_EQ(figures[0].name, "path");
   EXPECT_EQ(figures[0].format, "png");
   EXPECT_EQ(figures[0].bytes, "\x89PNG");
+  EXPECT_EQ(figures[0].width_mm, 88.0);
+  EXPECT_EQ(figures[0].height_mm, 70.4);
+  EXPECT_EQ(figures[1].width_mm, 0.0);
   EXPECT_EQ(figures[1].name, "axis-X");
   EXPECT_EQ(figures[1].bytes, "<svg/>");
   ExpectError(
@@ -299,6 +443,13 @@ TEST(Figures, ReadFromTheDomDump) {
       "figure name '../x.png' is not a plain file name");
   ExpectError([] { ParseFigures(R"(<pre class="figure" data-format="png"></pre>)", "r.html"); },
               "a figure has no data-name");
+  ExpectError(
+      [] {
+        ParseFigures(
+            R"(<pre class="figure" data-name="p" data-format="png" data-width-mm="-3"></pre>)",
+            "r.html");
+      },
+      "data-width-mm=\"-3\" is not a size in mm");
 }
 
 }  // namespace

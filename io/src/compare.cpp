@@ -357,6 +357,7 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
   for (const auto& p : paths) ptrs.push_back(p.get());
   const PassProgram pp = PlanPasses(ptrs, c.setup, c.machine, c.run, c.job.file);
   Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
+  v.pass_rows = PassRows(pp);
 
   // The export's deviation: exact points between samples to the curve, and curve points between
   // samples to the exact path.
@@ -415,6 +416,7 @@ VariantResult ExactVariant(const Context& c) {
   v.name = "DTIS (exact surface)";
   const PassProgram pp = PlanPasses(c.exact, c.setup, c.machine, c.run, c.job.file);
   Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
+  v.pass_rows = PassRows(pp);
   MotionDeviation(pp.program, pp.pass_of_segment, {c.exact, c.samples}, {c.exact, c.samples},
                   c.machine, &v);
   v.compute_s = Seconds(start);

@@ -1,6 +1,7 @@
 #include "dtis/io/figures.hpp"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -8,6 +9,8 @@
 
 #include <cctype>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -130,7 +133,74 @@ std::string Tail(const fs::path& log, std::size_t lines) {
   return text.substr(at == std::string::npos ? 0 : at + 1);
 }
 
+// CRC-32 (ISO 3309, as PNG chunks use it) of `bytes`.
+std::uint32_t Crc32(std::string_view bytes) {
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (unsigned char b : bytes) {
+    crc ^= b;
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return crc ^ 0xFFFFFFFFu;
+}
+
+void PutBigEndian(std::uint32_t v, std::string* out) {
+  for (int shift = 24; shift >= 0; shift -= 8)
+    out->push_back(static_cast<char>((v >> shift) & 0xFFu));
+}
+
+std::uint32_t GetBigEndian(std::string_view bytes, std::size_t at) {
+  std::uint32_t v = 0;
+  for (std::size_t k = 0; k < 4; ++k) v = (v << 8) | static_cast<unsigned char>(bytes[at + k]);
+  return v;
+}
+
 }  // namespace
+
+std::string PngWithDpi(std::string_view png, int dpi) {
+  constexpr std::string_view kSignature("\x89PNG\r\n\x1a\n", 8);
+  if (png.substr(0, 8) != kSignature) throw Error("not a PNG (no PNG signature)");
+  std::string out(kSignature);
+  bool added = false;
+  for (std::size_t at = 8; at < png.size();) {
+    if (at + 12 > png.size()) throw Error("not a PNG (a chunk is cut short at byte {})", at);
+    const std::uint32_t length = GetBigEndian(png, at);
+    if (length > png.size() - at - 12)
+      throw Error("not a PNG (a chunk is cut short at byte {})", at);
+    const std::string_view type = png.substr(at + 4, 4), chunk = png.substr(at, length + 12);
+    if (!added && (type == "IDAT" || type == "IEND")) {
+      std::string phys("pHYs");
+      const auto per_metre = static_cast<std::uint32_t>(std::lround(dpi / 0.0254));
+      PutBigEndian(per_metre, &phys);
+      PutBigEndian(per_metre, &phys);
+      phys.push_back('\x01');  // the unit is the metre
+      PutBigEndian(9, &out);
+      out += phys;
+      PutBigEndian(Crc32(phys), &out);
+      added = true;
+    }
+    if (type != "pHYs") out.append(chunk);
+    at += length + 12;
+  }
+  if (!added) throw Error("not a PNG (no image data)");
+  return out;
+}
+
+std::string SvgInMm(std::string_view svg, double width_mm, double height_mm) {
+  const std::size_t open = svg.find("<svg");
+  const std::size_t close = open == std::string_view::npos ? open : svg.find('>', open);
+  if (close == std::string_view::npos) throw Error("not an SVG (no <svg> element)");
+  std::string tag(svg.substr(open, close - open));
+  const auto width = Attribute(tag, "width"), height = Attribute(tag, "height");
+  if (!width || !height) throw Error("the <svg> element has no width and height");
+  const auto set = [&tag](std::string_view name, const std::string& from, const std::string& to) {
+    const std::string key = fmt::format(" {}=\"{}\"", name, from);
+    tag.replace(tag.find(key), key.size(), fmt::format(" {}=\"{}\"", name, to));
+  };
+  set("width", *width, fmt::format("{:.2f}mm", width_mm));
+  set("height", *height, fmt::format("{:.2f}mm", height_mm));
+  if (!Attribute(tag, "viewBox")) tag += fmt::format(" viewBox=\"0 0 {} {}\"", *width, *height);
+  return std::string(svg.substr(0, open)) + tag + std::string(svg.substr(close));
+}
 
 std::string DecodeBase64(std::string_view text) {
   std::string out;
@@ -197,6 +267,17 @@ std::vector<Figure> ParseFigures(std::string_view dom, const std::string& source
     }
     f.name = *name;
     f.format = *format;
+    for (auto [key, value] :
+         {std::pair{"data-width-mm", &f.width_mm}, {"data-height-mm", &f.height_mm}}) {
+      const auto text = Attribute(tag, key);
+      if (!text) continue;
+      char* end = nullptr;
+      *value = std::strtod(text->c_str(), &end);
+      if (end == text->c_str() || *end != '\0' || !(*value > 0.0 && *value < 1e4)) {
+        throw Error("{}: figure {}.{}: {}=\"{}\" is not a size in mm", source, f.name, f.format,
+                    key, *text);
+      }
+    }
     try {
       f.bytes = DecodeBase64(dom.substr(tag_end + 1, close - tag_end - 1));
     } catch (const Error& e) {
@@ -226,7 +307,9 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
   const TempDir temp;
   const fs::path dom = temp.Path() / "dom.html", log = temp.Path() / "browser.log";
   const std::string url = "file://" + fs::absolute(report_html).lexically_normal().string() +
-                          "#figures=" + formats + "&width=" + std::to_string(options.width_px);
+                          "#figures=" + formats +
+                          fmt::format("&width_mm={:g}&dpi={}", options.width_mm, options.dpi) +
+                          (options.pass > 0 ? fmt::format("&pass={}", options.pass) : "");
   const std::vector<std::string> argv = {browser,
                                          "--headless",
                                          "--no-sandbox",
@@ -263,7 +346,16 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
   std::vector<std::string> written;
   for (const auto& f : figures) {
     written.push_back((fs::path(out_dir) / (f.name + "." + f.format)).string());
-    files.emplace_back(written.back()).Write(f.bytes);
+    std::string bytes = f.bytes;
+    try {
+      if (f.format == "png") bytes = PngWithDpi(bytes, options.dpi);
+      if (f.format == "svg" && f.width_mm > 0 && f.height_mm > 0) {
+        bytes = SvgInMm(bytes, f.width_mm, f.height_mm);
+      }
+    } catch (const Error& e) {
+      throw Error("{}: figure {}.{}: {}", report_html, f.name, f.format, e.what());
+    }
+    files.emplace_back(written.back()).Write(bytes);
   }
   std::vector<AtomicFile*> all;
   for (auto& f : files) all.push_back(&f);

@@ -1012,6 +1012,18 @@ PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const Surfa
   return out;
 }
 
+std::vector<std::pair<long, long>> PassRows(const PassProgram& pp) {
+  std::vector<std::pair<long, long>> rows;
+  const auto& first = pp.program.first_row;
+  for (std::size_t k = 0; k < pp.pass_of_segment.size() && k < first.size(); ++k) {
+    if (pp.pass_of_segment[k] < 0) continue;
+    const long end =
+        k + 1 < first.size() ? first[k + 1] : static_cast<long>(pp.program.setpoints.size());
+    rows.emplace_back(first[k], end);
+  }
+  return rows;
+}
+
 namespace {
 
 // Passes and the links between them, planned as one program.
@@ -1042,6 +1054,7 @@ void RunSurface(const Job& job, const RunOptions& options, RunResult* r) {
   for (std::size_t k = 0; k < pp.pass_of_segment.size(); ++k) {
     if (pp.pass_of_segment[k] >= 0) r->pass_motion_s += pp.program.segments[k].motion_time_s;
   }
+  r->pass_rows = PassRows(pp);
   r->table = sink.Table();
   r->arc_length = sink.ArcLength();
   r->limiters = sink.Limiters();

@@ -54,6 +54,7 @@ struct VariantResult {
   // The planned setpoints (file units: mm, deg) and the constraint that decided each.
   interp::SetpointTable table;
   std::vector<interp::LimiterId> limiters;
+  std::vector<std::pair<long, long>> pass_rows;  // the rows of `table` on each pass (PassRows)
 };
 
 struct CompareResult {

@@ -14,7 +14,12 @@ namespace dtis::io {
 
 struct FigureOptions {
   std::vector<std::string> formats{"png", "svg"};  // of png, svg, jpeg, webp
-  int width_px = 1200;                             // each plot's height is the report's
+  // Print size: every figure is laid out this wide (a column of a two-column paper: 88 mm; a
+  // page: 180 mm), its height set by the plot; text is 7 to 8 pt at that size. PNGs are drawn at
+  // `dpi` and say so (pHYs), SVGs carry their size in mm.
+  double width_mm = 88.0;
+  int dpi = 300;
+  int pass = 0;  // > 0: the feed figure shows this pass alone (surface jobs), 1 the first
   // The browser: "" for $DTIS_CHROMIUM, else chromium (or chromium-browser, google-chrome) on PATH.
   std::string browser;
   double timeout_s = 300.0;  // wall clock for the browser
@@ -23,9 +28,10 @@ struct FigureOptions {
 };
 
 struct Figure {
-  std::string name;    // path, feed, compare-feed, axis-X, ...
-  std::string format;  // png, svg, ...
-  std::string bytes;   // the file's content
+  std::string name;                        // path, feed, usage, compare-feed, axis-X, ...
+  std::string format;                      // png, svg, ...
+  std::string bytes;                       // the file's content
+  double width_mm = 0.0, height_mm = 0.0;  // its print size, when the page says (else 0)
 };
 
 // Renders the report's figures and writes each as OUT_DIR/NAME.FORMAT, atomically (all of them are
@@ -37,6 +43,15 @@ std::vector<std::string> ExportFigures(const std::string& report_html, const std
 // The figures a report's DOM dump carries (<pre class="figure" data-name data-format>BASE64</pre>).
 // Throws dtis::Error naming `source` when one is malformed.
 std::vector<Figure> ParseFigures(std::string_view dom, const std::string& source);
+
+// A PNG that says it is `dpi` dots per inch (its pHYs chunk, before the image data; any other
+// pHYs is dropped). Throws dtis::Error when `png` is not a PNG.
+std::string PngWithDpi(std::string_view png, int dpi);
+
+// An SVG whose root element's width and height are in mm (its pixel size becomes its viewBox), so
+// it prints at that size. Throws dtis::Error when `svg` has no <svg> element with width and
+// height.
+std::string SvgInMm(std::string_view svg, double width_mm, double height_mm);
 
 // Standard base64 (RFC 4648, padding optional, whitespace ignored). Throws dtis::Error on any other
 // character.

@@ -145,6 +145,8 @@ struct RunResult {
   int job_faces = 0;      // SurfaceSetup::job_faces
   double stepover_mm = 0.0;
   double pass_motion_s = 0.0;  // time spent on the passes (links excluded)
+  // The rows [first, end) of `table` on each pass, in order (PassRows); the rows between are links.
+  std::vector<std::pair<long, long>> pass_rows;
   // What the passes leave out where the tool does not fit (PassList::UnreachableText), or "":
   // the first kSummaryUnreachable stretches, then how many more; `unreachable_all` lists them all
   // (for the HTML report).
@@ -252,6 +254,8 @@ struct PassProgram {
 PassProgram PlanPasses(const std::vector<const PathSource*>& passes, const SurfaceSetup& setup,
                        const Machine& machine, const RunOptions& options,
                        const std::string& job_file);
+// The setpoint rows [first, end) of each pass of `pp`, in pass order (links left out).
+std::vector<std::pair<long, long>> PassRows(const PassProgram& pp);
 
 // Builds the PathSource a job describes (for library users and tests).
 std::unique_ptr<PathSource> BuildPath(const Job& job);

@@ -1,6 +1,8 @@
-// A run as one self-contained HTML file: the tool path coloured by feed, feed against
-// time with the programmed feed and the constraint that decided each period, every axis'
-// position, velocity, acceleration and jerk against its limits, and the verifier's summary.
+// A run as one self-contained HTML file: the tool path coloured by feed, the feed (along a surface
+// job's passes, else against time) with the programmed feed and the constraint that decided each
+// period, how close every axis comes to each limit (|value| / limit in %, and the share of periods
+// at it), every axis' position, velocity, acceleration and jerk on demand, and the verifier's
+// summary. Every plot is built for the page and, for `dtis figures`, for print.
 // plotly.js is embedded at report time, so the file opens offline. Long runs are decimated for
 // display without hiding peaks: each pixel-wide bucket of a time series keeps its min and max.
 #pragma once
@@ -34,6 +36,9 @@ struct ReportInput {
   double programmed_feed_mm_min = 0.0;      // 0: not known
   double compute_s = -1.0;                  // < 0: not known
   int passes = 0;                           // surface jobs
+  // Surface jobs: the rows [first, end) of `table` on each pass (RunResult::pass_rows); the feed
+  // is then drawn against the arc length along the passes, links left out. Empty: against time.
+  std::vector<std::pair<long, long>> pass_rows;
   // Surface jobs: every stretch the passes left out where the tool does not fit, a line each
   // (RunResult::unreachable_all), listed whole under the summary; "" for none.
   std::string unreachable;
@@ -47,6 +52,8 @@ struct ReportInput {
 
 // Time-series points shown per plot (min and max of each of half as many buckets).
 inline constexpr std::size_t kReportPoints = 4000;
+// An axis is at a limit in a period where |value| is at least this share of the limit.
+inline constexpr double kAtLimit = 0.99;
 
 // The indices of `values` to draw at most `points` of them: the first and last, and in each of
 // points / 2 equal buckets the rows of the smallest and the largest value, in order.
