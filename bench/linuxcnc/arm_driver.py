@@ -8,11 +8,10 @@ pose LinuxCNC's kinematics module puts them at (stat.joint_actual_position, stat
 Writes one line per vector to DTIS_ARM_CAPTURE: twelve numbers, the joints then X Y Z A B C.
 """
 import os
-import sys
 import time
 
 import linuxcnc
-from session import Session
+from session import Session, run_main
 
 
 def main():
@@ -41,9 +40,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except Exception as e:  # noqa: BLE001 - reported, then LinuxCNC shuts down
-        print(f"arm_driver: {e}", file=sys.stderr)
-        with open(os.environ["DTIS_ARM_CAPTURE"] + ".failed", "w") as f:
-            f.write(str(e) + "\n")
+    run_main(main, "arm_driver", "DTIS_ARM_CAPTURE")

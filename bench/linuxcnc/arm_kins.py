@@ -15,15 +15,13 @@ Usage (as root or a user who may run LinuxCNC; needs linuxcnc-uspace and the sys
 their goal, so the joints, and the poses with them, agree to 1e-5.
 """
 import argparse
-import fcntl
 import pathlib
-import subprocess
 import sys
 import tempfile
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from reference import fail, hal_environment, ini_head  # noqa: E402
+from reference import fail, hal_environment, ini_head, run_linuxcnc  # noqa: E402
 
 PUMA = pathlib.Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/puma")
 # Postures away from the singularities, within puma560.ini's joint limits (deg).
@@ -96,17 +94,7 @@ def run(folder):
     env = hal_environment(folder)
     env.update(DTIS_ARM_JOINTS=";".join(",".join(str(v) for v in p) for p in POSTURES),
                DTIS_ARM_CAPTURE=str(capture))
-    with open("/tmp/dtis-hal.lock", "w") as lock:  # one HAL session per host
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
-        with open(folder / "linuxcnc.log", "w") as log:
-            r = subprocess.run(["timeout", "600", "linuxcnc", str(ini)], stdout=log,
-                               stderr=subprocess.STDOUT, env=env)
-        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
-    failed = pathlib.Path(str(capture) + ".failed")
-    if failed.exists() or not capture.exists():
-        fail(f"LinuxCNC run failed (exit {r.returncode}); see {folder}/linuxcnc.log: "
-             f"{failed.read_text().strip() if failed.exists() else 'no capture'}")
+    run_linuxcnc(ini, folder, env, capture, 600)
     rows = [[float(v) for v in line.split()] for line in capture.read_text().splitlines()]
     if len(rows) != len(POSTURES) or any(len(r) != 12 for r in rows):
         fail(f"unexpected capture {capture}")

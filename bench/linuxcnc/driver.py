@@ -11,11 +11,10 @@ that reads sampler.0, default `halsampler -c 0`). Exit status 0 on success.
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import linuxcnc
-from session import Session
+from session import Session, run_main
 
 
 def main():
@@ -50,10 +49,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except Exception as e:  # noqa: BLE001 - reported, then LinuxCNC shuts down
-        print(f"driver: {e}", file=sys.stderr)
-        with open(os.environ["DTIS_TP_CAPTURE"] + ".failed", "w") as f:
-            f.write(str(e) + "\n")
-        sys.exit(1)
+    run_main(main, "driver", "DTIS_TP_CAPTURE")

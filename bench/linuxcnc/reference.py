@@ -158,6 +158,23 @@ SERVO_PERIOD = 1000000
 {hal}"""
 
 
+def run_linuxcnc(ini, folder, env, capture, timeout_s):
+    """Runs LinuxCNC on `ini` headless, alone on this host (one HAL session per host), its output
+    in folder/linuxcnc.log; fails unless its [DISPLAY] program wrote `capture` (it writes
+    capture.failed with the reason when it cannot)."""
+    with open("/tmp/dtis-hal.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
+        with open(folder / "linuxcnc.log", "w") as log:
+            r = subprocess.run(["timeout", str(timeout_s), "linuxcnc", str(ini)], stdout=log,
+                               stderr=subprocess.STDOUT, env=env)
+        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
+    failed = pathlib.Path(str(capture) + ".failed")
+    if failed.exists() or not capture.exists():
+        fail(f"LinuxCNC run failed (exit {r.returncode}); see {folder}/linuxcnc.log: "
+             f"{failed.read_text().strip() if failed.exists() else 'no capture'}")
+
+
 def write_config(machine, folder, driver):
     ax = machine.axes
     hal = [
@@ -239,17 +256,7 @@ def linuxcnc_run(machine, program, start, folder, recorder):
     env = hal_environment(folder)
     env.update(DTIS_TP_PROGRAM=str(program), DTIS_TP_START=start, DTIS_TP_CAPTURE=str(capture),
                DTIS_TP_RECORDER=recorder)
-    with open("/tmp/dtis-hal.lock", "w") as lock:  # one HAL session per host
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
-        with open(folder / "linuxcnc.log", "w") as log:
-            r = subprocess.run(["timeout", "3600", "linuxcnc", str(ini)], stdout=log,
-                               stderr=subprocess.STDOUT, env=env)
-        subprocess.run(["halrun", "-U"], capture_output=True, env=env)
-    failed = pathlib.Path(str(capture) + ".failed")
-    if failed.exists() or not capture.exists():
-        fail(f"LinuxCNC run failed (exit {r.returncode}); see {folder}/linuxcnc.log: "
-             f"{failed.read_text().strip() if failed.exists() else 'no capture'}")
+    run_linuxcnc(ini, folder, env, capture, 3600)
     rows = []
     for line in capture.read_text().split("\n"):
         f = line.split()

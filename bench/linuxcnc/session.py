@@ -5,6 +5,7 @@ Session holds LinuxCNC's status, command and error channels; wait_for polls the 
 condition holds, raising LinuxCNC's errors and a timeout; on_and_homed takes the machine out of
 E-stop, turns it on and homes it where it stands.
 """
+import os
 import sys
 import time
 
@@ -42,3 +43,15 @@ class Session:
         c.mode(linuxcnc.MODE_MANUAL)
         c.home(-1)
         self.wait_for("homing", lambda: all(s.homed[: s.joints]), 30)
+
+
+def run_main(main, name, capture_variable):
+    """Runs a driver's main; on any error says so, writes the reason to the capture file's
+    `.failed` beside it (where the host script looks) and exits 1, which shuts LinuxCNC down."""
+    try:
+        main()
+    except Exception as e:  # noqa: BLE001 - reported, then LinuxCNC shuts down
+        print(f"{name}: {e}", file=sys.stderr)
+        with open(os.environ[capture_variable] + ".failed", "w") as f:
+            f.write(str(e) + "\n")
+        sys.exit(1)
