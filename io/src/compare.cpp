@@ -93,8 +93,8 @@ std::string LimitingAxes(const interp::ProgramResult& program, const std::vector
 
 // The largest distance of the planned tip positions on the passes to the exact path (`tip`), and
 // the largest angle of the planned tool axis to the rule's axis (`axis`) at the nearest point of
-// its exact path. Both are the exact passes, except for a smoothed axis (SmoothedVariant), whose
-// tip is measured on its own pass and whose axis against the rule's.
+// its exact path. Both are the exact passes, except for a smoothed axis (ExactVariant with a
+// tolerance), whose tip is measured on its own pass and whose axis against the rule's.
 struct ExactPaths {
   const std::vector<const PathSource*>& passes;
   const std::vector<PathSamples>& samples;
@@ -390,34 +390,21 @@ VariantResult BSplineVariant(const Context& c, double tol, std::vector<std::stri
   return v;
 }
 
-// The exact surface with the axis smoothed within `tol_deg` ([orientation] axis_tolerance_deg),
-// on its own passes and links (`setup`).
-VariantResult SmoothedVariant(const Context& c, const SurfaceSetup& setup,
-                              const std::vector<PathSamples>& samples, double tol_deg) {
+// The exact surface planned on `passes` and their links (`setup`): with the rule's axis when
+// `tol_deg` is 0, else with the axis smoothed within it ([orientation] axis_tolerance_deg). The tip
+// is measured on its own exact passes, the axis against the rule's (c.exact).
+VariantResult ExactVariant(const Context& c, const SurfaceSetup& setup,
+                           const std::vector<const PathSource*>& passes,
+                           const std::vector<PathSamples>& samples, double tol_deg) {
   const auto start = Clock::now();
   VariantResult v;
   v.kind = VariantResult::Kind::kExact;
-  v.name = SmoothedName(tol_deg);
+  v.name = tol_deg > 0.0 ? SmoothedName(tol_deg) : "DTIS (exact surface)";
   v.axis_tolerance_deg = tol_deg;
-  std::vector<const PathSource*> passes;
-  for (const auto& p : setup.passes.passes) passes.push_back(p.get());
   const PassProgram pp = PlanPasses(passes, setup, c.machine, c.run, c.job.file);
   Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
-  MotionDeviation(pp.program, pp.pass_of_segment, {passes, samples}, {c.exact, c.samples},
-                  c.machine, &v);
-  v.compute_s = Seconds(start);
-  return v;
-}
-
-VariantResult ExactVariant(const Context& c) {
-  const auto start = Clock::now();
-  VariantResult v;
-  v.kind = VariantResult::Kind::kExact;
-  v.name = "DTIS (exact surface)";
-  const PassProgram pp = PlanPasses(c.exact, c.setup, c.machine, c.run, c.job.file);
-  Finish(pp.program, pp.pass_of_segment, c.machine, c.job.vpop.period_s, &v);
   v.pass_rows = PassRows(pp);
-  MotionDeviation(pp.program, pp.pass_of_segment, {c.exact, c.samples}, {c.exact, c.samples},
+  MotionDeviation(pp.program, pp.pass_of_segment, {passes, samples}, {c.exact, c.samples},
                   c.machine, &v);
   v.compute_s = Seconds(start);
   return v;
@@ -493,7 +480,8 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
       if (std::find(r.notes.begin(), r.notes.end(), note) == r.notes.end()) r.notes.push_back(note);
     }
   }
-  with_each_planner("DTIS (exact surface)", [&] { return ExactVariant(c); });
+  with_each_planner("DTIS (exact surface)",
+                    [&] { return ExactVariant(c, setup, c.exact, c.samples, 0.0); });
   // A tilt_yaw axis is also smoothed within the tolerance the exports keep the axis in, like for
   // like, and within the job's own tolerance if it names another.
   if (job.surface->orientation.kind == strategies::Orientation::Kind::kTiltYaw) {
@@ -511,18 +499,18 @@ CompareResult RunCompare(const Job& job, const CompareOptions& options) {
         r.notes.push_back(fmt::format("{}: not planned: {}", SmoothedName(tol), e.what()));
         continue;
       }
-      std::vector<PathSamples> samples(smoothed_setup->passes.passes.size());
-      ForEachPass(static_cast<int>(samples.size()), [&](std::size_t k) {
-        samples[k] = geometry::SamplePath(*smoothed_setup->passes.passes[k], spec.sample_step_mm,
+      std::vector<const PathSource*> passes;
+      for (const auto& p : smoothed_setup->passes.passes) passes.push_back(p.get());
+      std::vector<PathSamples> samples(passes.size());
+      ForEachPass(static_cast<int>(passes.size()), [&](std::size_t k) {
+        samples[k] = geometry::SamplePath(*passes[k], spec.sample_step_mm,
                                           fmt::format("{}: pass {}", job.file, k + 1));
       });
-      const std::size_t first = r.variants.size();
       with_each_planner(SmoothedName(tol), [&] {
         smoothed_setup->pass_options.planner = smoothed_setup->link_options.planner =
             setup.pass_options.planner;
-        return SmoothedVariant(c, *smoothed_setup, samples, tol);
+        return ExactVariant(c, *smoothed_setup, passes, samples, tol);
       });
-      for (std::size_t i = first; i < r.variants.size(); ++i) r.variants[i].files.clear();
     }
   }
   return r;
