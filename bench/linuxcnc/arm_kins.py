@@ -21,7 +21,8 @@ import tempfile
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from reference import fail, hal_environment, ini_head, run_linuxcnc  # noqa: E402
+from reference import (  # noqa: E402
+    HOMED_WHERE_IT_STANDS, fail, hal_environment, ini_head, run_linuxcnc)
 
 PUMA = pathlib.Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/puma")
 # Postures away from the singularities, within puma560.ini's joint limits (deg).
@@ -79,11 +80,7 @@ MAX_ACCELERATION = 200.0
 MIN_LIMIT = {lo}
 MAX_LIMIT = {hi}
 HOME = {home}
-HOME_OFFSET = 0
-HOME_SEARCH_VEL = 0
-HOME_LATCH_VEL = 0
-HOME_SEQUENCE = 0
-"""
+{HOMED_WHERE_IT_STANDS}"""
     (folder / "arm.ini").write_text(ini)
     return folder / "arm.ini"
 

@@ -132,6 +132,14 @@ def linuxcnc_program(program, tol, path):
     return path
 
 
+# A joint's homing keys when it is homed where it stands (no search, no latch, all at once).
+HOMED_WHERE_IT_STANDS = """HOME_OFFSET = 0
+HOME_SEARCH_VEL = 0
+HOME_LATCH_VEL = 0
+HOME_SEQUENCE = 0
+"""
+
+
 def ini_head(machine, display, folder, halfiles):
     """The sections of a headless configuration's INI that do not depend on the machine, up to
     [TRAJ]: its [DISPLAY] program, one task and motion cycle of 1 ms, and its HAL files in order."""
@@ -223,11 +231,7 @@ MAX_LIMIT = {a['max']}
 MAX_VELOCITY = {a['v']}
 MAX_ACCELERATION = {a['a']}
 HOME = 0
-HOME_OFFSET = 0
-HOME_SEARCH_VEL = 0
-HOME_LATCH_VEL = 0
-HOME_SEQUENCE = 0
-"""
+{HOMED_WHERE_IT_STANDS}"""
     (folder / "machine.ini").write_text(ini)
     return folder / "machine.ini"
 

@@ -969,7 +969,7 @@ class Builder {
   // The fit aims at this fraction of the tolerance at its samples; the check between the
   // smoothed pass's points holds to the whole tolerance.
   static constexpr double kAxisFitAim = 0.8;
-  // Halvings of the smoothing's range of 22 decades: to 1.4 % of a decade.
+  // Halvings of the smoothing's range of 22 decades: to 0.005 of a decade (1.2 % in the smoothing).
   static constexpr int kSmoothingBisections = 12;
 
   [[noreturn]] void FailSmoothing(const SurfacePass& pass, double s, const Eigen::Vector2d& uv,
