@@ -16,13 +16,16 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"cubic_wave"}));
   app.add_option("output", out, "the STEP file to write")->required();
   CLI11_PARSE(app, argc, argv);
+  // Written beside the output and renamed over it, so a failed write leaves no half file.
+  const std::string partial = out + ".partial";
   try {
-    // Written beside the output and renamed over it, so a failed write leaves no half file.
-    const std::string partial = out + ".partial";
     dtis::parts::WriteStep(dtis::parts::CubicWaveFace(), partial);
     std::filesystem::rename(partial, out);
   } catch (const std::exception& e) {
-    fmt::print(stderr, "dtis_make_part: {}: {}\n", out, e.what());
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    fmt::print(stderr, "dtis_make_part: {}: {} (check that its folder exists and is writable)\n",
+               out, e.what());
     return 1;
   }
   return 0;
