@@ -16,6 +16,7 @@
 #include <BRep_Tool.hxx>
 #include <GCPnts_AbscissaPoint.hxx>
 #include <GC_MakeArcOfCircle.hxx>
+#include <Geom2d_BSplineCurve.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
@@ -32,6 +33,7 @@
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
+#include <TColgp_Array1OfPnt2d.hxx>
 #include <TColgp_Array2OfPnt.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Compound.hxx>
@@ -1121,8 +1123,132 @@ TEST(SurfaceErrors, AGuideBendTighterThanTheOffsetIsNamed) {
                                  {}});
   spec.range = std::array<double, 2>{6.0, 6.0};
   spec.stepover_mm = 6.0;
+  spec.on_gouge = StrategySpec::OnGouge::kStop;
   test::ExpectError([&] { strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec); },
                     {"bends tighter than the pass's offset", "arc length", "(u, v)"});
+}
+
+// The guide above on a plane tilted along X (z = 0.2 x), finished by a ball R2 at offsets -6 to
+// 6 mm: where the guide's radius of curvature (0.514 mm at least, in its bend) comes within 1 %
+// of the offset, on the inside of the bend (the lines 3 and 6 mm to its left), the offset line
+// folds over itself. Those lines are finished up to the fold and from where it ends, every pass
+// planned within every limit with the ball on the plane; the stretch between is left out, its
+// ends and its length (along the offset curve on the face, through the fold's cusps) those
+// computed from OpenCASCADE's curve of the guide: the parameters where offset times curvature
+// is 0.99, and the offset curve lifted onto the plane, 400000 chords.
+TEST(SurfacePass, AGuideBendTighterThanTheOffsetLeavesTheFoldOutAndMeasuresIt) {
+  TColgp_Array2OfPnt poles(1, 2, 1, 2);
+  for (int i = 1; i <= 2; ++i) {
+    for (int j = 1; j <= 2; ++j) {
+      const double x = i == 1 ? -50.0 : 50.0, y = j == 1 ? -50.0 : 50.0;
+      poles(i, j) = gp_Pnt(x, y, 0.2 * x);
+    }
+  }
+  const TopoDS_Face face =
+      BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+          .Face();
+  const FaceSurface surface(face, "tilted floor");
+  const std::vector<Eigen::Vector3d> guide_poles = {
+      {-40, 0, 0}, {-4, 0, 0}, {0, 0, 0}, {0, 4, 0}, {0, 40, 0}};
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kLeadingLine;
+  spec.guide = std::make_shared<const geometry::BSplineCurve>(
+      geometry::BSplineCurveData{2, {0, 0, 0, 0.45, 0.55, 1, 1, 1}, guide_poles, {}});
+  spec.range = std::array<double, 2>{-6.0, 6.0};
+  spec.stepover_mm = 3.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+
+  // OpenCASCADE's guide: offset times curvature, and the offset point lifted onto the plane.
+  TColgp_Array1OfPnt2d occ_poles(1, 5);
+  for (int k = 0; k < 5; ++k) occ_poles(k + 1) = gp_Pnt2d(guide_poles[k].x(), guide_poles[k].y());
+  TColStd_Array1OfReal knots(1, 4);
+  TColStd_Array1OfInteger mults(1, 4);
+  const double kv[] = {0.0, 0.45, 0.55, 1.0};
+  const int mv[] = {3, 1, 1, 3};
+  for (int k = 0; k < 4; ++k) knots(k + 1) = kv[k], mults(k + 1) = mv[k];
+  const Handle(Geom2d_BSplineCurve) guide = new Geom2d_BSplineCurve(occ_poles, knots, mults, 2);
+  const auto fold = [&](double d, double t) {
+    gp_Pnt2d p;
+    gp_Vec2d d1, d2;
+    guide->D2(t, p, d1, d2);
+    return d * (d1.X() * d2.Y() - d1.Y() * d2.X()) / std::pow(d1.Magnitude(), 3);
+  };
+  const auto on_plane = [&](double d, double t) {
+    gp_Pnt2d p;
+    gp_Vec2d d1;
+    guide->D1(t, p, d1);
+    const double x = p.X() - d * d1.Y() / d1.Magnitude(), y = p.Y() + d * d1.X() / d1.Magnitude();
+    return Eigen::Vector3d(x, y, 0.2 * x);
+  };
+  // Where the fold crosses 0.99 between a (below it) and b (above), by bisection.
+  const auto crossing = [&](double d, double a, double b) {
+    for (int i = 0; i < 100; ++i) {
+      const double m = 0.5 * (a + b);
+      (fold(d, m) > 0.99 ? b : a) = m;
+    }
+    return b;
+  };
+  int folded_lines = 0;
+  for (int line = 1; line <= 5; ++line) {
+    const double d = -6.0 + 3.0 * (line - 1);
+    SCOPED_TRACE(fmt::format("offset {} mm", d));
+    // The fold's parameters, from a scan and bisection at its ends.
+    constexpr int kScan = 100000;
+    double first = NAN, last = NAN;
+    for (int k = 0; k <= kScan; ++k) {
+      const double t = static_cast<double>(k) / kScan;
+      if (fold(d, t) > 0.99) {
+        if (std::isnan(first)) first = t;
+        last = t;
+      }
+    }
+    std::vector<const strategies::Unreachable*> stretches;
+    for (const auto& u : passes.unreachable) {
+      if (u.line == line) stretches.push_back(&u);
+    }
+    if (std::isnan(first)) {
+      EXPECT_TRUE(stretches.empty()) << passes.UnreachableText(100);
+      continue;
+    }
+    ++folded_lines;
+    ASSERT_EQ(stretches.size(), 1u) << passes.UnreachableText(100);
+    const strategies::Unreachable& u = *stretches.front();
+    const double ta = crossing(d, first - 1.0 / kScan, first);
+    const double tb = crossing(d, last + 1.0 / kScan, last);
+    EXPECT_TRUE(u.resumes);
+    EXPECT_NE(u.why.find("bends tighter than the pass's offset"), std::string::npos) << u.why;
+    EXPECT_LT((u.from - on_plane(d, ta)).norm(), 1e-3) << u.from.transpose();
+    EXPECT_LT((u.to - on_plane(d, tb)).norm(), 1e-3) << u.to.transpose();
+    constexpr int kChords = 400000;
+    double length = 0.0;
+    for (int k = 1; k <= kChords; ++k) {
+      length += (on_plane(d, ta + (tb - ta) * k / kChords) -
+                 on_plane(d, ta + (tb - ta) * (k - 1) / kChords))
+                    .norm();
+    }
+    EXPECT_NEAR(u.length_mm, length, 1e-3);
+    EXPECT_GT(length, 1.0);
+  }
+  EXPECT_EQ(folded_lines, 2);
+  // The run summary lists them.
+  EXPECT_NE(passes.UnreachableText(8).find("bends tighter"), std::string::npos);
+  // Every pass planned within every limit, the ball on the plane (its centre 2 mm from it).
+  ASSERT_EQ(passes.passes.size(), 7u);
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const auto& pass : passes.passes) {
+    SCOPED_TRACE(pass->Index());
+    interp::VpopOptions opt;
+    opt.feed_mm_s = 50.0;
+    const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+    ASSERT_GT(planned.points.size(), 10u);
+    EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+    for (const auto& sp : planned.points) {
+      const Pose pose = xyz->Forward(sp.q);
+      const Eigen::Vector3d centre = pose.tip + 2.0 * pose.axis;
+      ASSERT_NEAR((centre.z() - 0.2 * centre.x()) / std::sqrt(1.04), 2.0, 1e-6);
+    }
+  }
 }
 
 TEST(SurfaceErrors, AFlatBottomOverASaddleIsRefusedWithWhere) {

@@ -833,6 +833,40 @@ class Builder {
           h *= 0.5;
           continue;
         }
+        if (status == EvalStatus::kGuideFold && skip) {
+          // The offset line folds over itself ahead (a guide bend tighter than the offset): the
+          // pass ends at the last point before the fold (to h / 4096), and the line's stretch
+          // through the fold is left out, up to where the offset line unfolds.
+          double lo = 0.0, hi = h;
+          ContactPoint before = cur, p;
+          for (int i = 0; i < 12; ++i) {
+            const double mid = 0.5 * (lo + hi);
+            EvalStatus st;
+            int n = 0;
+            if (e.Step(cur, mid, spec_.newton, &p, &st, &n) && !UnfitAt(p)) {
+              lo = mid, before = p;
+            } else {
+              hi = mid;
+            }
+          }
+          Fold fold;
+          if (AcrossFold(e, before, &fold)) {
+            why = FoldText(e.Constraint(), fold);
+            open_gap(before, s + lo);
+            gap->contact_mm = fold.contact_mm;
+            cand->trail.insert(cand->trail.end(), fold.points.begin(), fold.points.end());
+            s += lo + (fold.last.tip - before.tip).norm();
+            cur = fold.last;
+            if (!fold.resumes) return end_in_gap();
+            if (fits(cur, s)) {
+              close_gap(cur, s, true);
+            } else {
+              gap_dir = cur.duv.normalized();
+            }
+            h = full / 1024.0;
+            continue;
+          }
+        }
         Bridge piece;
         const bool top = OverTop(e, cur, s, &piece) || OverCrest(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
@@ -1333,6 +1367,170 @@ class Builder {
     const EvalStatus st = e.Evaluate(uv, out, guide_hint);
     return st == EvalStatus::kOk || (st == EvalStatus::kFlatContact &&
                                      e.Constraint().kind != PassConstraint::Kind::kPlaneCl);
+  }
+
+  // A leading_line's stretch through a fold of its offset line (AcrossFold).
+  struct Fold {
+    // The line's points through it, 0.05 mm apart or more (where the line was traced).
+    std::vector<Eigen::Vector3d> points;
+    // Where the offset line unfolds (resumes), or the last point of it on the face.
+    ContactPoint last;
+    bool resumes = false;
+    double contact_mm = 0.0;         // of the line on the face through the fold
+    double least_radius = INFINITY;  // the guide's least radius of curvature along it, mm
+  };
+
+  // Guide arc length between the points a fold's stretch is measured by, mm.
+  static constexpr double kFoldStepMm = 0.01;
+
+  // The trace of a leading_line pass stops at `a`, just before the guide's radius of curvature
+  // comes within 1 % of the offset on the inside of a bend (kGuideFold): beyond it the closest
+  // point of the guide stops being one and the offset line folds over itself (a swallowtail:
+  // cusp, loop, cusp). The stretch left out is the line's points there, each the guide's point at
+  // t offset by the pass's offset along its left normal (in XY, projected along Z onto the face),
+  // from a's guide parameter on in the pass's direction to the first parameter past the bend where
+  // the fold is below 0.99 again (bisection to 1e-13 of the guide's parameter); its length is
+  // the chords between those points of the face every kFoldStepMm of the guide. The pass resumes
+  // there. Where the offset line leaves the face first (to 1e-6 of the step by bisection) or the
+  // guide ends in the bend, the line ends there. False if no fold is met within 1 mm of the guide
+  // from a (not such a place).
+  bool AcrossFold(const PassEvaluator& e, const ContactPoint& a, Fold* out) const {
+    const PassConstraint& c = e.Constraint();
+    if (c.kind != PassConstraint::Kind::kGuide || !c.guide || !std::isfinite(a.guide_t)) {
+      return false;
+    }
+    const geometry::BSplineCurve& guide = *c.guide;
+    const double offset = c.value;
+    const double t0 = guide.FirstParameter(), t1 = guide.LastParameter();
+    Eigen::Vector3d gd[3];
+    guide.Derivatives(a.guide_t, 1, gd);
+    const double way = gd[1].x() * a.tangent.x() + gd[1].y() * a.tangent.y();
+    if (!(std::abs(way) > 0.0)) return false;
+    const double sign = way > 0.0 ? 1.0 : -1.0;
+    // The guide at t: the offset point in XY, the fold (offset times curvature, signed) and the
+    // guide's speed.
+    struct OnGuide {
+      Eigen::Vector2d q;
+      double fold = 0.0, speed = 0.0;
+    };
+    const auto at = [&](double t) {
+      guide.Derivatives(t, 2, gd, sign < 0.0);
+      const Eigen::Vector2d d1(gd[1].x(), gd[1].y()), d2(gd[2].x(), gd[2].y());
+      OnGuide g;
+      g.speed = d1.norm();
+      if (!(g.speed > 0.0)) return g;
+      const Eigen::Vector2d left = Eigen::Vector2d(-d1.y(), d1.x()) / g.speed;
+      g.q = Eigen::Vector2d(gd[0].x(), gd[0].y()) + offset * left;
+      g.fold = offset * (d1.x() * d2.y() - d1.y() * d2.x()) / (g.speed * g.speed * g.speed);
+      return g;
+    };
+    // The face's point over q in XY (the contact point there), by Newton in (u, v) from uv.
+    const auto lift = [&](const Eigen::Vector2d& q, Eigen::Vector2d* uv, Eigen::Vector3d* p) {
+      geometry::SurfaceDerivatives d;
+      for (int it = 0; it < 30; ++it) {
+        if (!face_.InBox(uv->x(), uv->y())) return false;
+        face_.D2(uv->x(), uv->y(), &d);
+        const Eigen::Vector2d f(d.p.x() - q.x(), d.p.y() - q.y());
+        if (f.norm() <= 1e-10) {
+          *p = d.p;
+          return face_.Inside(uv->x(), uv->y());
+        }
+        Eigen::Matrix2d j;
+        j << d.su.x(), d.sv.x(), d.su.y(), d.sv.y();
+        if (!(std::abs(j.determinant()) > 1e-300)) return false;
+        *uv -= j.inverse() * f;
+      }
+      return false;
+    };
+    constexpr double kFold = 0.99;  // as the evaluator's refusal (surface_pass.cpp)
+    double t = a.guide_t, guide_mm = 0.0;
+    bool folded = false;
+    Eigen::Vector2d uv = a.uv;
+    Eigen::Vector3d last = a.p;
+    out->points.clear();
+    out->contact_mm = 0.0;
+    out->resumes = false;
+    double most = 0.0;  // the largest fold met
+    // Ends the stretch at the line's point at parameter `end` (lifted from uv): the pass resumes
+    // there if `resumes` and it evaluates.
+    const auto finish = [&](double end, const Eigen::Vector2d& end_uv, const Eigen::Vector3d& p,
+                            bool resumes) {
+      out->contact_mm += (p - last).norm();
+      out->points.push_back(p);
+      out->least_radius = std::abs(offset) / most;
+      const EvalStatus st = e.Evaluate(end_uv, &out->last, end);
+      if (st != EvalStatus::kOk && st != EvalStatus::kFlatContact) {
+        out->last = a;
+        out->last.uv = end_uv;
+        out->last.p = p;
+        out->resumes = false;
+        return true;
+      }
+      out->resumes = resumes && st == EvalStatus::kOk && out->last.guide_fold <= kFold &&
+                     std::abs(out->last.g) <= spec_.newton.tolerance_mm;
+      return true;
+    };
+    for (;;) {
+      const OnGuide here = at(t);
+      if (!(here.speed > 0.0)) return false;
+      const bool last_one = sign > 0.0 ? t >= t1 : t <= t0;
+      if (last_one) {
+        // The guide ends in the bend: so does the line.
+        return folded && finish(t, uv, last, false);
+      }
+      const double next = std::clamp(t + sign * kFoldStepMm / here.speed, t0, t1);
+      const OnGuide there = at(next);
+      if (!(there.speed > 0.0)) return false;
+      Eigen::Vector2d next_uv = uv;
+      Eigen::Vector3d p;
+      if (folded && !(there.fold > kFold)) {
+        // Past the bend: where the fold comes down to kFold, by bisection.
+        double lo = t, hi = next;
+        for (int i = 0; i < 200 && std::abs(hi - lo) > 1e-13 * (1.0 + std::abs(hi)); ++i) {
+          const double mid = 0.5 * (lo + hi);
+          (at(mid).fold > kFold ? lo : hi) = mid;
+        }
+        if (lift(at(hi).q, &next_uv, &p)) return finish(hi, next_uv, p, true);
+      } else if (lift(there.q, &next_uv, &p)) {
+        folded = folded || there.fold > kFold;
+        most = std::max(most, there.fold);
+        out->contact_mm += (p - last).norm();
+        if (out->points.empty() || (p - out->points.back()).norm() >= 0.05) {
+          out->points.push_back(p);
+        }
+        last = p;
+        uv = next_uv;
+        t = next;
+        guide_mm += kFoldStepMm;
+        if (!folded && guide_mm > 1.0) return false;
+        continue;
+      }
+      // The line leaves the face between t and next: to where it does, by bisection.
+      if (!folded) return false;
+      double lo = t, hi = next;
+      Eigen::Vector2d lo_uv = uv;
+      Eigen::Vector3d lo_p = last;
+      for (int i = 0; i < 20; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        Eigen::Vector2d m_uv = lo_uv;
+        Eigen::Vector3d m_p;
+        if (lift(at(mid).q, &m_uv, &m_p)) {
+          lo = mid, lo_uv = m_uv, lo_p = m_p;
+        } else {
+          hi = mid;
+        }
+      }
+      return finish(lo, lo_uv, lo_p, false);
+    }
+  }
+
+  // Why a fold's stretch is left out.
+  static std::string FoldText(const PassConstraint& c, const Fold& fold) {
+    return fmt::format(
+        "the guide curve bends tighter than the pass's offset from it (its radius of curvature "
+        "comes down to {:.4g} mm, the offset is {:.4g} mm): the offset line folds over itself; "
+        "use offsets below the guide's radius of curvature or a smoother guide",
+        fold.least_radius, std::abs(c.value));
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
