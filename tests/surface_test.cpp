@@ -2370,5 +2370,139 @@ TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
   }
 }
 
+// The whole sphere of radius 10 above, its north pole a top, finished on a fixed axis by a flat
+// end R4 and a bull nose R5 r1: plane_cl lines through the pole and beside it, uv lines from pole
+// to pole. At every setpoint of every pass the tool touches the sphere (its corner circle's
+// distance from the centre is 10 + r, in closed form, within 1e-6 mm) and a plane_cl tip stays on
+// its plane; over the pole the bottom slides across with the tip at the pole's height. What each
+// line's passes finish and what is left out (the lower half: an undercut) add up to its contact
+// curve: for a plane x = c, where ((10 + r) cos(lat) + R - r) cos(long) is c (Simpson's rule on
+// the latitude, two branches), for a uv line half a great circle.
+TEST(SurfacePass, AFlatBottomIsCarriedOverASpheresPole) {
+  const Handle(Geom_SphericalSurface) sphere = new Geom_SphericalSurface(gp_Ax3(gp::XOY()), 10.0);
+  const TopoDS_Face face =
+      BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi, -std::numbers::pi / 2,
+                              std::numbers::pi / 2, 1e-7)
+          .Face();
+  const FaceSurface surface(face, "sphere");
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0)}) {
+    const double big_r = tool.TorusRadius(), r = tool.corner_radius;
+    // How far the tool's lower side is from the sphere: its corner's centres lie on the circle
+    // of radius R - r, r above the tip.
+    const auto gap = [&](const Pose& pose) {
+      const double out = std::max(0.0, pose.tip.head<2>().norm() - big_r);
+      return std::hypot(out, pose.tip.z() + r) - r - 10.0;
+    };
+    // Each pass planned within every limit, the tool touching the sphere, a plane_cl tip on its
+    // plane; the highest tip, and how many setpoints have it at the pole's height.
+    const auto plan = [&](const strategies::SurfacePass& pass, bool plane, int* over) {
+      SCOPED_TRACE(pass.Describe(pass.Start()));
+      interp::VpopOptions opt;
+      opt.feed_mm_s = 50.0;
+      opt.planner = pass.Index() % 2 ? interp::PlannerKind::kVpop : interp::PlannerKind::kLookAhead;
+      const test::Planned planned = test::PlanAndVerify(pass, *xyz, opt);
+      ASSERT_GT(planned.points.size(), 10u);
+      EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+      const double value = pass.Evaluator().Constraint().value;
+      for (const auto& sp : planned.points) {
+        const Pose pose = xyz->Forward(sp.q);
+        ASSERT_NEAR(gap(pose), 0.0, 1e-6) << pose.tip.transpose();
+        if (plane) {
+          ASSERT_NEAR(pose.tip.x(), value, 1e-6);
+        }
+        if (std::abs(pose.tip.z() - 10.0) < 1e-9) ++*over;
+      }
+    };
+    // What each line finishes and leaves out, keyed by `key` of a contact point on it, mm.
+    const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
+      std::map<long, double> covered;
+      for (const auto& pass : passes.passes) {
+        strategies::ContactPoint c;
+        EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+        covered[key(c.p)] += ContactPathLength(*pass, 0.05);
+      }
+      for (const auto& u : passes.unreachable) {
+        EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
+        covered[key(u.from)] += u.length_mm;
+      }
+      return covered;
+    };
+    {
+      SCOPED_TRACE(tool.Describe() + " plane_cl");
+      StrategySpec spec;
+      spec.range = std::array<double, 2>{-3.0, 3.0};
+      spec.stepover_mm = 1.5;
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // One pass a line, carried over the pole on the bottom: the tip at the pole's height for
+      // a chord of 2 sqrt(R^2 - c^2) mm, 1 ms setpoints at 50 mm/s at most.
+      ASSERT_EQ(passes.passes.size(), 5u);
+      int over = 0;
+      for (const auto& pass : passes.passes) {
+        EXPECT_TRUE(pass->HasBridges());
+        plan(*pass, true, &over);
+      }
+      double chords = 0.0;
+      for (const double c : {-3.0, -1.5, 0.0, 1.5, 3.0}) {
+        chords += 2.0 * std::sqrt(big_r * big_r - c * c) / 0.05;
+      }
+      EXPECT_GT(over, chords);
+      // The tip plane of contact point p (tip = p + r n + (R - r) w - r a, n = p / 10 and w the
+      // unit part of p across the axis), keyed in quarter mm.
+      const auto covered = coverage(passes, [&](const Eigen::Vector3d& p) {
+        const double h = p.head<2>().norm();
+        const double x = h > 1e-9 ? p.x() * (1.0 + r / 10.0 + big_r / h) : 0.0;
+        return std::lround(x / 0.25);
+      });
+      EXPECT_EQ(covered.size(), 5u) << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double c = static_cast<double>(quarter) * 0.25;
+        // One branch of the contact curve, latitude from -90 to 90 deg: Simpson's rule.
+        const auto speed = [&](double lat) {
+          const double d = (10.0 + r) * std::cos(lat) + big_r;
+          const double cos_long = c / d;
+          const double sin_long = std::sqrt(1.0 - cos_long * cos_long);
+          const double dlong = -c * (10.0 + r) * std::sin(lat) / (d * d * sin_long);
+          return std::hypot(10.0, 10.0 * std::cos(lat) * dlong);
+        };
+        constexpr int kIntervals = 200000;
+        const double h = std::numbers::pi / kIntervals;
+        double branch = speed(-std::numbers::pi / 2) + speed(std::numbers::pi / 2);
+        for (int k = 1; k < kIntervals; ++k) {
+          branch += (k % 2 ? 4.0 : 2.0) * speed(-std::numbers::pi / 2 + k * h);
+        }
+        branch *= h / 3.0;
+        EXPECT_NEAR(length, 2.0 * branch, 0.01) << "x = " << c << passes.UnreachableText(100);
+      }
+    }
+    {
+      SCOPED_TRACE(tool.Describe() + " uv");
+      StrategySpec spec;
+      spec.kind = StrategySpec::Kind::kUv;
+      spec.along_u = false;
+      spec.stepover_mm = 5.0;
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // Each ends with its contact point at the pole, the bottom's edge on it.
+      int over = 0;
+      for (const auto& pass : passes.passes) {
+        plan(*pass, false, &over);
+        const Eigen::Vector3d end = pass->EndPose().tip;
+        EXPECT_NEAR(end.z(), 10.0, 1e-3);
+        EXPECT_NEAR(end.head<2>().norm(), big_r, 1e-3);
+      }
+      const auto covered = coverage(passes, [](const Eigen::Vector3d& p) {
+        return std::lround(std::atan2(p.y(), p.x()) * 1e3);
+      });
+      EXPECT_EQ(covered.size(), 8u);
+      for (const auto& [angle, length] : covered) {
+        EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01)
+            << "u = " << static_cast<double>(angle) * 1e-3 << passes.UnreachableText(100);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace dtis

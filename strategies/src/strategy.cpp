@@ -1627,6 +1627,9 @@ class Builder {
     for (int it = 0; it < 30; ++it) {
       face_.D2(uv.x(), uv.y(), &d);
       const Eigen::Vector3d big_n = d.su.cross(d.sv);
+      // No normal here (a pole): tried below.
+      const double longer = std::max(d.su.norm(), d.sv.norm());
+      if (!(big_n.norm() > 1e-10 * longer * longer)) break;
       const Eigen::Vector2d f(big_n.dot(e1), big_n.dot(e2));
       if (f.norm() <= 1e-13 * big_n.norm()) {
         found = true;
@@ -1643,11 +1646,17 @@ class Builder {
       cod.setThreshold(1e-9);
       uv -= cod.compute(j).solve(f);
     }
-    if (!found || (d.p - cur.p).norm() > 1e-2) return false;
-    const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(side_);
-    if (n.dot(a) < 0.0) return false;
+    // A top at a pole of the parametrization (a sphere's pole on top): S_u x S_v vanishes there,
+    // so the Newton finds no normal; the pole is the top if the normal next to it is the axis.
+    Pole pole;
+    const bool at_pole = !(found && (d.p - cur.p).norm() <= 1e-2) && PoleNear(cur, 1e-2, &pole);
+    if (!at_pole && (!found || (d.p - cur.p).norm() > 1e-2)) return false;
+    if (at_pole) uv = pole.uv, d = pole.at;
+    const geometry::SurfaceDerivatives& bend = at_pole ? pole.inside : d;
+    const Eigen::Vector3d n = bend.su.cross(bend.sv).normalized() * static_cast<double>(side_);
+    if (at_pole ? n.dot(a) < 1.0 - 1e-9 : n.dot(a) < 0.0) return false;
     // Bends away from the tool all round (a crest's zero curvature along it too).
-    if (CurvatureTowards(d, n) > 1e-9) return false;
+    if (CurvatureTowards(bend, n) > 1e-9) return false;
     // The bottom's disc around the top, cut by the strategy's plane.
     const Eigen::Vector3d across = c.normal - c.normal.dot(a) * a;
     if (across.norm() < 1e-9) return false;
@@ -1663,9 +1672,28 @@ class Builder {
     // The contact point leaving the top on the far side, just past the chord.
     constexpr double kPast = 1e-4;
     const Eigen::Vector3d away = (tip_out - d.p).normalized();
-    Eigen::Matrix<double, 3, 2> dp;
-    dp << d.su, d.sv;
-    const Eigen::Vector2d guess = uv + dp.completeOrthogonalDecomposition().solve(away * kPast);
+    Eigen::Vector2d guess;
+    if (at_pole) {
+      // (u, v) is degenerate at a pole: of the parameter lines leaving it (720 of them), the
+      // point kPast from the pole that is nearest the pole moved kPast away, as AcrossPole does.
+      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
+      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
+      const Eigen::Vector3d target = d.p + away * kPast;
+      Eigen::Vector2d q = uv;
+      q[pole.fixed] += pole.inward * kPast / pole.across_mm;
+      geometry::SurfaceDerivatives dq;
+      double best = INFINITY;
+      constexpr int kScan = 720;
+      for (int k = 0; k <= kScan; ++k) {
+        q[m] = m0 + (m1 - m0) * k / kScan;
+        face_.D2(q.x(), q.y(), &dq);
+        if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), guess = q;
+      }
+    } else {
+      Eigen::Matrix<double, 3, 2> dp;
+      dp << d.su, d.sv;
+      guess = uv + dp.completeOrthogonalDecomposition().solve(away * kPast);
+    }
     ContactPoint exit;
     EvalStatus status;
     if (e.SolveChord(tip_out, kPast, guess, spec_.newton, &exit, &status) < 0 ||
@@ -1684,6 +1712,40 @@ class Builder {
     piece->s_out = piece->s_in + 2.0 * half;
     piece->s_exit = piece->s_out + (exit.tip - tip_out).norm();
     return true;
+  }
+
+  // A collapsed edge of the UV box (a pole: S_u or S_v vanishes along it).
+  struct Pole {
+    Eigen::Vector2d uv;               // on the edge, at the contact point's other parameter
+    int fixed = 0;                    // the parameter that is constant along the edge (0: u, 1: v)
+    double inward = 1.0;              // the sign of a step of that parameter into the box
+    double across_mm = 0.0;           // |dS / d(that parameter)| at the edge, mm per unit
+    geometry::SurfaceDerivatives at;  // at uv
+    geometry::SurfaceDerivatives inside;  // 1e-6 of the box inside, where the normal is defined
+  };
+
+  // The pole whose point is within `near` mm of contact point c, if any.
+  bool PoleNear(const ContactPoint& c, double near, Pole* pole) const {
+    for (int k = 0; k < 2; ++k) {
+      const double lo = k == 0 ? face_.U0() : face_.V0(), hi = k == 0 ? face_.U1() : face_.V1();
+      for (const double edge : {lo, hi}) {
+        Eigen::Vector2d uv = c.uv;
+        uv[k] = edge;
+        face_.D2(uv.x(), uv.y(), &pole->at);
+        const Eigen::Vector3d& along = k == 0 ? pole->at.sv : pole->at.su;
+        const Eigen::Vector3d& across = k == 0 ? pole->at.su : pole->at.sv;
+        if (!(along.norm() < 1e-9 * across.norm()) || (pole->at.p - c.p).norm() > near) continue;
+        pole->uv = uv;
+        pole->fixed = k;
+        pole->inward = edge == lo ? 1.0 : -1.0;
+        pole->across_mm = across.norm();
+        Eigen::Vector2d in = uv;
+        in[k] += pole->inward * 1e-6 * (hi - lo);
+        face_.D2(in.x(), in.y(), &pole->inside);
+        return true;
+      }
+    }
+    return false;
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on because the contact point
