@@ -1921,6 +1921,20 @@ TEST(SurfaceJob, APartOutOfTravelIsRefusedBeforePlanning) {
       io::CheckPassesInTravel(io::SetUpSurface(inside, nullptr), *machine, inside.file));
 }
 
+// A part larger than the machine: a floor 700 mm long along Y, on a machine whose Y travels
+// 600 mm, is refused before planning, naming the pass, the axis and its travel.
+TEST(SurfaceJob, APartLargerThanTheTravelIsRefusedBeforePlanning) {
+  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(gp_Pln(gp::XOY()), -50, 50, -350, 350).Face();
+  const std::string step = WriteNamedFaces("too_large", {{floor, "floor"}});
+  const io::Job job =
+      BallJob(step, "", "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 20",
+              test::Scratch("too_large.toml"));
+  test::ExpectError([&] { io::RunJob(job); },
+                    {"too_large.toml: pass 1: cannot follow the path at ", "('floor')",
+                     "axis Y would have to reach ", "outside its travel [-300, 300] mm",
+                     "(found before planning)"});
+}
+
 // A link's corner out of travel: the part raised until the passes fit under Z's top (300 mm) but
 // the height the links traverse at (the clearance above the face) does not.
 TEST(SurfaceJob, ALinkOutOfTravelIsRefusedBeforePlanning) {
