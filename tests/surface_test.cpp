@@ -1136,7 +1136,8 @@ TEST(SurfaceErrors, AGuideBendTighterThanTheOffsetIsNamed) {
 // ends and its length (along the offset curve on the face, through the fold's cusps) those
 // computed from OpenCASCADE's curve of the guide: the parameters where offset times curvature
 // is 0.99, and the offset curve lifted onto the plane, 400000 chords.
-TEST(SurfacePass, AGuideBendTighterThanTheOffsetLeavesTheFoldOutAndMeasuresIt) {
+// The plane z = 0.2 x over x, y in [-50, 50].
+TopoDS_Face TiltedFloor() {
   TColgp_Array2OfPnt poles(1, 2, 1, 2);
   for (int i = 1; i <= 2; ++i) {
     for (int j = 1; j <= 2; ++j) {
@@ -1144,9 +1145,12 @@ TEST(SurfacePass, AGuideBendTighterThanTheOffsetLeavesTheFoldOutAndMeasuresIt) {
       poles(i, j) = gp_Pnt(x, y, 0.2 * x);
     }
   }
-  const TopoDS_Face face =
-      BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
-          .Face();
+  return BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+      .Face();
+}
+
+TEST(SurfacePass, AGuideBendTighterThanTheOffsetLeavesTheFoldOutAndMeasuresIt) {
+  const TopoDS_Face face = TiltedFloor();
   const FaceSurface surface(face, "tilted floor");
   const std::vector<Eigen::Vector3d> guide_poles = {
       {-40, 0, 0}, {-4, 0, 0}, {0, 0, 0}, {0, 4, 0}, {0, 40, 0}};
@@ -1919,6 +1923,41 @@ TEST(SurfaceJob, APartOutOfTravelIsRefusedBeforePlanning) {
               test::Scratch("in_travel.toml"));
   EXPECT_NO_THROW(
       io::CheckPassesInTravel(io::SetUpSurface(inside, nullptr), *machine, inside.file));
+}
+
+// The tilted floor and the guide bending tighter than the offset above, as a job: it plans and
+// verifies, every limit held, and the run summary lists the two folds' stretches.
+TEST(SurfaceJob, AGuideBendTighterThanTheOffsetPlansAndListsTheFolds) {
+  const std::string step = WriteNamedFaces("guide_fold", {{TiltedFloor(), "floor"}});
+  const std::string guide = test::Scratch("guide_fold_guide.toml");
+  std::ofstream(guide) << "degree = 2\nknots = [0, 0, 0, 0.45, 0.55, 1, 1, 1]\n"
+                          "poles = [[-40, 0], [-4, 0], [0, 0], [0, 4], [0, 40]]\n";
+  const io::Job job = io::ParseJob(
+      fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+[tool]
+kind = "ball_end"
+radius_mm = 2
+[strategy]
+kind = "leading_line"
+guide = "{}"
+stepover_mm = 3
+range = [-6, 6]
+)",
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, guide),
+      test::Scratch("guide_fold.toml"));
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(r.verify.worst_ratio, 1.0);
+  EXPECT_EQ(r.passes, 7);
+  EXPECT_EQ(r.unreachable_count, 2u);
+  const std::string summary = io::FormatRunSummary(job, r);
+  for (const char* fragment :
+       {"line 4, ", "line 5, ", "bends tighter than the pass's offset", "the offset is 6 mm"}) {
+    EXPECT_NE(summary.find(fragment), std::string::npos) << fragment << "\n" << summary;
+  }
 }
 
 // A part larger than the machine: a floor 700 mm long along Y, on a machine whose Y travels
