@@ -2530,6 +2530,35 @@ TEST(SurfacePass, AFlatBottomIsCarriedOverASpheresPole) {
         EXPECT_NEAR(length, 2.0 * branch, 0.01) << "x = " << c << passes.UnreachableText(100);
       }
     }
+    // plane_cc and leading_line (its guide along Y through the pole): the contact point on the
+    // sections x = c, whose circles' whole lengths the passes and the stretches left out add up to.
+    for (const auto kind : {StrategySpec::Kind::kPlaneCc, StrategySpec::Kind::kLeadingLine}) {
+      SCOPED_TRACE(tool.Describe() + " " + StrategySpec::KindName(kind));
+      StrategySpec spec;
+      spec.kind = kind;
+      spec.range = std::array<double, 2>{-2.0, 2.0};
+      spec.stepover_mm = 1.0;
+      spec.guide = std::make_shared<const geometry::BSplineCurve>(
+          geometry::BSplineCurveData{1, {0, 0, 1, 1}, {{0, -20, 0}, {0, 20, 0}}, {}});
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // The line through the pole is one pass, carried over it: its tip at the pole's height
+      // across the bottom's diameter.
+      int over = 0, bridged = 0;
+      for (const auto& pass : passes.passes) {
+        bridged += pass->HasBridges();
+        plan(*pass, false, &over);
+      }
+      EXPECT_EQ(bridged, 1);
+      EXPECT_GT(over, 2.0 * big_r / 0.05);
+      const auto covered =
+          coverage(passes, [](const Eigen::Vector3d& p) { return std::lround(p.x() / 0.25); });
+      EXPECT_EQ(covered.size(), 5u) << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double c = static_cast<double>(quarter) * 0.25;
+        EXPECT_NEAR(length, 2.0 * std::numbers::pi * std::sqrt(100.0 - c * c), 0.01)
+            << "x = " << c << passes.UnreachableText(100);
+      }
+    }
     {
       SCOPED_TRACE(tool.Describe() + " uv");
       StrategySpec spec;

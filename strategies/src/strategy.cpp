@@ -1543,6 +1543,7 @@ class Builder {
   // False if this is not such a place: another tool, orientation or strategy, no point ahead on
   // the line where the normal's part across the axis turns over, or a face that does not bend
   // away from the tool all round there (a saddle, a valley: the bottom would rest on two places).
+  // A pole on top of the face within 0.01 mm of cur (a sphere's) is the crest itself.
   bool OverCrest(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
     const PassConstraint& c = e.Constraint();
     if (!(tool_.TorusRadius() > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
@@ -1556,6 +1557,61 @@ class Builder {
     // Which side of the crest a contact point is on: + before it (the bottom's edge on this
     // side), - past it; 0 sitting flat.
     const auto before = [&](const ContactPoint& p) { return (p.n - p.n.dot(a) * a).dot(w_in); };
+    constexpr double kPast = 1e-4;
+    // A crest at a pole on top (a sphere's pole on a plane_cc or leading_line line through it):
+    // (u, v) is degenerate there and the line cannot be marched through it. The pole is the
+    // crest; the contact point leaves it on the far side, at the first point of the line, by
+    // doubling from kPast from the pole (the parameter line leaving the pole nearest the
+    // direction the contact point came in, of 720, then Newton across the line), whose tip it
+    // fixes.
+    Pole pole;
+    const bool iso = c.kind == PassConstraint::Kind::kIsoU || c.kind == PassConstraint::Kind::kIsoV;
+    if (!iso && PoleNear(cur, 1e-2, &pole)) {
+      const Eigen::Vector3d n =
+          pole.inside.su.cross(pole.inside.sv).normalized() * static_cast<double>(side_);
+      const Eigen::Vector3d in = pole.at.p - cur.p;
+      if (n.dot(a) < 1.0 - 1e-9 || CurvatureTowards(pole.inside, n) > 1e-9 || !(in.norm() > 0.0)) {
+        return false;
+      }
+      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
+      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
+      ContactPoint exit;
+      bool past_it = false;
+      for (double past = kPast; past <= tool_.radius && !past_it; past *= 2.0) {
+        const Eigen::Vector3d target = pole.at.p + in.normalized() * past;
+        Eigen::Vector2d q = pole.uv, uv = pole.uv;
+        q[pole.fixed] += pole.inward * past / pole.across_mm;
+        geometry::SurfaceDerivatives dq;
+        double best = INFINITY;
+        constexpr int kScan = 720;
+        for (int k = 0; k <= kScan; ++k) {
+          q[m] = m0 + (m1 - m0) * k / kScan;
+          face_.D2(q.x(), q.y(), &dq);
+          if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), uv = q;
+        }
+        for (int it = 0; it < 20; ++it) {
+          if (!face_.InBox(uv.x(), uv.y()) || !Evaluates(e, uv, &exit, cur.guide_t)) break;
+          if (std::abs(exit.g) <= spec_.newton.tolerance_mm) {
+            past_it =
+                e.Evaluate(exit.uv, &exit, cur.guide_t) == EvalStatus::kOk && before(exit) < 0.0;
+            break;
+          }
+          const double n2 = exit.dg.squaredNorm();
+          if (!(n2 > 0.0)) break;
+          uv -= exit.dg * (exit.g / n2);
+        }
+      }
+      if (!past_it || !e.Inside(exit.uv) || exit.tangent.dot(cur.tangent) < 0.0) return false;
+      piece->entry = cur;
+      piece->exit = exit;
+      piece->top_uv = pole.uv;
+      piece->top = pole.at.p;
+      piece->tip_in = cur.tip;
+      piece->direction = (exit.tip - cur.tip).normalized();
+      piece->s_start = piece->s_in = s;
+      piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
+      return true;
+    }
     // The contact point `length` mm along the line from cur (false: the line cannot be followed).
     const auto along = [&](double length, ContactPoint* out) {
       Eigen::Vector2d dir = cur.duv.normalized();
@@ -1563,7 +1619,6 @@ class Builder {
     };
     // The first point past the crest, by doubling from 1e-4 mm (the trace's last step), at most
     // a tool radius ahead.
-    constexpr double kPast = 1e-4;
     double lo = 0.0, hi = kPast;
     ContactPoint p;
     for (;; hi *= 2.0) {
