@@ -16,6 +16,7 @@
 #include <BRep_Tool.hxx>
 #include <GCPnts_AbscissaPoint.hxx>
 #include <GC_MakeArcOfCircle.hxx>
+#include <Geom2d_BSplineCurve.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
@@ -32,6 +33,7 @@
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
+#include <TColgp_Array1OfPnt2d.hxx>
 #include <TColgp_Array2OfPnt.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Compound.hxx>
@@ -1121,8 +1123,136 @@ TEST(SurfaceErrors, AGuideBendTighterThanTheOffsetIsNamed) {
                                  {}});
   spec.range = std::array<double, 2>{6.0, 6.0};
   spec.stepover_mm = 6.0;
+  spec.on_gouge = StrategySpec::OnGouge::kStop;
   test::ExpectError([&] { strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec); },
                     {"bends tighter than the pass's offset", "arc length", "(u, v)"});
+}
+
+// The guide above on a plane tilted along X (z = 0.2 x), finished by a ball R2 at offsets -6 to
+// 6 mm: where the guide's radius of curvature (0.514 mm at least, in its bend) comes within 1 %
+// of the offset, on the inside of the bend (the lines 3 and 6 mm to its left), the offset line
+// folds over itself. Those lines are finished up to the fold and from where it ends, every pass
+// planned within every limit with the ball on the plane; the stretch between is left out, its
+// ends and its length (along the offset curve on the face, through the fold's cusps) those
+// computed from OpenCASCADE's curve of the guide: the parameters where offset times curvature
+// is 0.99, and the offset curve lifted onto the plane, 400000 chords.
+// The plane z = 0.2 x over x, y in [-50, 50].
+TopoDS_Face TiltedFloor() {
+  TColgp_Array2OfPnt poles(1, 2, 1, 2);
+  for (int i = 1; i <= 2; ++i) {
+    for (int j = 1; j <= 2; ++j) {
+      const double x = i == 1 ? -50.0 : 50.0, y = j == 1 ? -50.0 : 50.0;
+      poles(i, j) = gp_Pnt(x, y, 0.2 * x);
+    }
+  }
+  return BRepBuilderAPI_MakeFace(Handle(Geom_BezierSurface)(new Geom_BezierSurface(poles)), 1e-7)
+      .Face();
+}
+
+TEST(SurfacePass, AGuideBendTighterThanTheOffsetLeavesTheFoldOutAndMeasuresIt) {
+  const TopoDS_Face face = TiltedFloor();
+  const FaceSurface surface(face, "tilted floor");
+  const std::vector<Eigen::Vector3d> guide_poles = {
+      {-40, 0, 0}, {-4, 0, 0}, {0, 0, 0}, {0, 4, 0}, {0, 40, 0}};
+  StrategySpec spec;
+  spec.kind = StrategySpec::Kind::kLeadingLine;
+  spec.guide = std::make_shared<const geometry::BSplineCurve>(
+      geometry::BSplineCurveData{2, {0, 0, 0, 0.45, 0.55, 1, 1, 1}, guide_poles, {}});
+  spec.range = std::array<double, 2>{-6.0, 6.0};
+  spec.stepover_mm = 3.0;
+  const auto passes = strategies::BuildPasses(surface, Ball(2.0), Orientation{}, spec);
+
+  // OpenCASCADE's guide: offset times curvature, and the offset point lifted onto the plane.
+  TColgp_Array1OfPnt2d occ_poles(1, 5);
+  for (int k = 0; k < 5; ++k) occ_poles(k + 1) = gp_Pnt2d(guide_poles[k].x(), guide_poles[k].y());
+  TColStd_Array1OfReal knots(1, 4);
+  TColStd_Array1OfInteger mults(1, 4);
+  const double kv[] = {0.0, 0.45, 0.55, 1.0};
+  const int mv[] = {3, 1, 1, 3};
+  for (int k = 0; k < 4; ++k) knots(k + 1) = kv[k], mults(k + 1) = mv[k];
+  const Handle(Geom2d_BSplineCurve) guide = new Geom2d_BSplineCurve(occ_poles, knots, mults, 2);
+  const auto fold = [&](double d, double t) {
+    gp_Pnt2d p;
+    gp_Vec2d d1, d2;
+    guide->D2(t, p, d1, d2);
+    return d * (d1.X() * d2.Y() - d1.Y() * d2.X()) / std::pow(d1.Magnitude(), 3);
+  };
+  const auto on_plane = [&](double d, double t) {
+    gp_Pnt2d p;
+    gp_Vec2d d1;
+    guide->D1(t, p, d1);
+    const double x = p.X() - d * d1.Y() / d1.Magnitude(), y = p.Y() + d * d1.X() / d1.Magnitude();
+    return Eigen::Vector3d(x, y, 0.2 * x);
+  };
+  // Where the fold crosses 0.99 between a (below it) and b (above), by bisection.
+  const auto crossing = [&](double d, double a, double b) {
+    for (int i = 0; i < 100; ++i) {
+      const double m = 0.5 * (a + b);
+      (fold(d, m) > 0.99 ? b : a) = m;
+    }
+    return b;
+  };
+  int folded_lines = 0;
+  for (int line = 1; line <= 5; ++line) {
+    const double d = -6.0 + 3.0 * (line - 1);
+    SCOPED_TRACE(fmt::format("offset {} mm", d));
+    // The fold's parameters, from a scan and bisection at its ends.
+    constexpr int kScan = 100000;
+    double first = NAN, last = NAN;
+    for (int k = 0; k <= kScan; ++k) {
+      const double t = static_cast<double>(k) / kScan;
+      if (fold(d, t) > 0.99) {
+        if (std::isnan(first)) first = t;
+        last = t;
+      }
+    }
+    std::vector<const strategies::Unreachable*> stretches;
+    for (const auto& u : passes.unreachable) {
+      if (u.line == line) stretches.push_back(&u);
+    }
+    if (std::isnan(first)) {
+      EXPECT_TRUE(stretches.empty()) << passes.UnreachableText(100);
+      continue;
+    }
+    ++folded_lines;
+    ASSERT_EQ(stretches.size(), 1u) << passes.UnreachableText(100);
+    const strategies::Unreachable& u = *stretches.front();
+    const double ta = crossing(d, first - 1.0 / kScan, first);
+    const double tb = crossing(d, last + 1.0 / kScan, last);
+    EXPECT_TRUE(u.resumes);
+    EXPECT_NE(u.why.find("bends tighter than the pass's offset"), std::string::npos) << u.why;
+    EXPECT_LT((u.from - on_plane(d, ta)).norm(), 1e-3) << u.from.transpose();
+    EXPECT_LT((u.to - on_plane(d, tb)).norm(), 1e-3) << u.to.transpose();
+    constexpr int kChords = 400000;
+    double length = 0.0;
+    for (int k = 1; k <= kChords; ++k) {
+      length += (on_plane(d, ta + (tb - ta) * k / kChords) -
+                 on_plane(d, ta + (tb - ta) * (k - 1) / kChords))
+                    .norm();
+    }
+    EXPECT_NEAR(u.length_mm, length, 1e-3);
+    EXPECT_GT(length, 1.0);
+  }
+  EXPECT_EQ(folded_lines, 2);
+  // The run summary lists them.
+  EXPECT_NE(passes.UnreachableText(8).find("bends tighter"), std::string::npos);
+  // Every pass planned within every limit, the ball on the plane (its centre 2 mm from it).
+  ASSERT_EQ(passes.passes.size(), 7u);
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const auto& pass : passes.passes) {
+    SCOPED_TRACE(pass->Index());
+    interp::VpopOptions opt;
+    opt.feed_mm_s = 50.0;
+    const test::Planned planned = test::PlanAndVerify(*pass, *xyz, opt);
+    ASSERT_GT(planned.points.size(), 10u);
+    EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+    for (const auto& sp : planned.points) {
+      const Pose pose = xyz->Forward(sp.q);
+      const Eigen::Vector3d centre = pose.tip + 2.0 * pose.axis;
+      ASSERT_NEAR((centre.z() - 0.2 * centre.x()) / std::sqrt(1.04), 2.0, 1e-6);
+    }
+  }
 }
 
 TEST(SurfaceErrors, AFlatBottomOverASaddleIsRefusedWithWhere) {
@@ -1795,6 +1925,55 @@ TEST(SurfaceJob, APartOutOfTravelIsRefusedBeforePlanning) {
       io::CheckPassesInTravel(io::SetUpSurface(inside, nullptr), *machine, inside.file));
 }
 
+// The tilted floor and the guide bending tighter than the offset above, as a job: it plans and
+// verifies, every limit held, and the run summary lists the two folds' stretches.
+TEST(SurfaceJob, AGuideBendTighterThanTheOffsetPlansAndListsTheFolds) {
+  const std::string step = WriteNamedFaces("guide_fold", {{TiltedFloor(), "floor"}});
+  const std::string guide = test::Scratch("guide_fold_guide.toml");
+  std::ofstream(guide) << "degree = 2\nknots = [0, 0, 0, 0.45, 0.55, 1, 1, 1]\n"
+                          "poles = [[-40, 0], [-4, 0], [0, 0], [0, 4], [0, 40]]\n";
+  const io::Job job = io::ParseJob(
+      fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+[tool]
+kind = "ball_end"
+radius_mm = 2
+[strategy]
+kind = "leading_line"
+guide = "{}"
+stepover_mm = 3
+range = [-6, 6]
+)",
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, guide),
+      test::Scratch("guide_fold.toml"));
+  const io::RunResult r = io::RunJob(job);
+  ASSERT_TRUE(r.verify.Passed()) << interp::FormatReport(r.verify);
+  EXPECT_LE(r.verify.worst_ratio, 1.0);
+  EXPECT_EQ(r.passes, 7);
+  EXPECT_EQ(r.unreachable_count, 2u);
+  const std::string summary = io::FormatRunSummary(job, r);
+  for (const char* fragment :
+       {"line 4, ", "line 5, ", "bends tighter than the pass's offset", "the offset is 6 mm"}) {
+    EXPECT_NE(summary.find(fragment), std::string::npos) << fragment << "\n" << summary;
+  }
+}
+
+// A part larger than the machine: a floor 700 mm long along Y, on a machine whose Y travels
+// 600 mm, is refused before planning, naming the pass, the axis and its travel.
+TEST(SurfaceJob, APartLargerThanTheTravelIsRefusedBeforePlanning) {
+  const TopoDS_Face floor = BRepBuilderAPI_MakeFace(gp_Pln(gp::XOY()), -50, 50, -350, 350).Face();
+  const std::string step = WriteNamedFaces("too_large", {{floor, "floor"}});
+  const io::Job job =
+      BallJob(step, "", "plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 20",
+              test::Scratch("too_large.toml"));
+  test::ExpectError([&] { io::RunJob(job); },
+                    {"too_large.toml: pass 1: cannot follow the path at ", "('floor')",
+                     "axis Y would have to reach ", "outside its travel [-300, 300] mm",
+                     "(found before planning)"});
+}
+
 // A link's corner out of travel: the part raised until the passes fit under Z's top (300 mm) but
 // the height the links traverse at (the clearance above the face) does not.
 TEST(SurfaceJob, ALinkOutOfTravelIsRefusedBeforePlanning) {
@@ -2241,6 +2420,169 @@ TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
   }
   for (const auto& pass : passes.passes) {
     EXPECT_NEAR((pass->EndPose().tip - Eigen::Vector3d(0, 0, 10)).norm(), 0.0, 1e-3);
+  }
+}
+
+// The whole sphere of radius 10 above, its north pole a top, finished on a fixed axis by a flat
+// end R4 and a bull nose R5 r1: plane_cl lines through the pole and beside it, uv lines from pole
+// to pole. At every setpoint of every pass the tool touches the sphere (its corner circle's
+// distance from the centre is 10 + r, in closed form, within 1e-6 mm) and a plane_cl tip stays on
+// its plane; over the pole the bottom slides across with the tip at the pole's height. What each
+// line's passes finish and what is left out (the lower half: an undercut) add up to its contact
+// curve: for a plane x = c, where ((10 + r) cos(lat) + R - r) cos(long) is c (Simpson's rule on
+// the latitude, two branches), for a uv line half a great circle.
+TEST(SurfacePass, AFlatBottomIsCarriedOverASpheresPole) {
+  const Handle(Geom_SphericalSurface) sphere = new Geom_SphericalSurface(gp_Ax3(gp::XOY()), 10.0);
+  const TopoDS_Face face =
+      BRepBuilderAPI_MakeFace(sphere, 0, 2 * std::numbers::pi, -std::numbers::pi / 2,
+                              std::numbers::pi / 2, 1e-7)
+          .Face();
+  const FaceSurface surface(face, "sphere");
+  const auto xyz =
+      kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
+  for (const Tool& tool :
+       {Torus(Tool::Kind::kFlatEnd, 4.0, 0.0), Torus(Tool::Kind::kBullNose, 5.0, 1.0)}) {
+    const double big_r = tool.TorusRadius(), r = tool.corner_radius;
+    // How far the tool's lower side is from the sphere: its corner's centres lie on the circle
+    // of radius R - r, r above the tip.
+    const auto gap = [&](const Pose& pose) {
+      const double out = std::max(0.0, pose.tip.head<2>().norm() - big_r);
+      return std::hypot(out, pose.tip.z() + r) - r - 10.0;
+    };
+    // Each pass planned within every limit, the tool touching the sphere, a plane_cl tip on its
+    // plane; the highest tip, and how many setpoints have it at the pole's height.
+    const auto plan = [&](const strategies::SurfacePass& pass, bool plane, int* over) {
+      SCOPED_TRACE(pass.Describe(pass.Start()));
+      interp::VpopOptions opt;
+      opt.feed_mm_s = 50.0;
+      opt.planner = pass.Index() % 2 ? interp::PlannerKind::kVpop : interp::PlannerKind::kLookAhead;
+      const test::Planned planned = test::PlanAndVerify(pass, *xyz, opt);
+      ASSERT_GT(planned.points.size(), 10u);
+      EXPECT_LE(planned.report.worst_ratio, 1.0) << planned.report.worst;
+      const double value = pass.Evaluator().Constraint().value;
+      for (const auto& sp : planned.points) {
+        const Pose pose = xyz->Forward(sp.q);
+        ASSERT_NEAR(gap(pose), 0.0, 1e-6) << pose.tip.transpose();
+        if (plane) {
+          ASSERT_NEAR(pose.tip.x(), value, 1e-6);
+        }
+        if (std::abs(pose.tip.z() - 10.0) < 1e-9) ++*over;
+      }
+    };
+    // What each line finishes and leaves out, keyed by `key` of a contact point on it, mm.
+    const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
+      std::map<long, double> covered;
+      for (const auto& pass : passes.passes) {
+        strategies::ContactPoint c;
+        EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+        covered[key(c.p)] += ContactPathLength(*pass, 0.05);
+      }
+      for (const auto& u : passes.unreachable) {
+        EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
+        covered[key(u.from)] += u.length_mm;
+      }
+      return covered;
+    };
+    {
+      SCOPED_TRACE(tool.Describe() + " plane_cl");
+      StrategySpec spec;
+      spec.range = std::array<double, 2>{-3.0, 3.0};
+      spec.stepover_mm = 1.5;
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // One pass a line, carried over the pole on the bottom: the tip at the pole's height for
+      // a chord of 2 sqrt(R^2 - c^2) mm, 1 ms setpoints at 50 mm/s at most.
+      ASSERT_EQ(passes.passes.size(), 5u);
+      int over = 0;
+      for (const auto& pass : passes.passes) {
+        EXPECT_TRUE(pass->HasBridges());
+        plan(*pass, true, &over);
+      }
+      double chords = 0.0;
+      for (const double c : {-3.0, -1.5, 0.0, 1.5, 3.0}) {
+        chords += 2.0 * std::sqrt(big_r * big_r - c * c) / 0.05;
+      }
+      EXPECT_GT(over, chords);
+      // The tip plane of contact point p (tip = p + r n + (R - r) w - r a, n = p / 10 and w the
+      // unit part of p across the axis), keyed in quarter mm.
+      const auto covered = coverage(passes, [&](const Eigen::Vector3d& p) {
+        const double h = p.head<2>().norm();
+        const double x = h > 1e-9 ? p.x() * (1.0 + r / 10.0 + big_r / h) : 0.0;
+        return std::lround(x / 0.25);
+      });
+      EXPECT_EQ(covered.size(), 5u) << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double c = static_cast<double>(quarter) * 0.25;
+        // One branch of the contact curve, latitude from -90 to 90 deg: Simpson's rule.
+        const auto speed = [&](double lat) {
+          const double d = (10.0 + r) * std::cos(lat) + big_r;
+          const double cos_long = c / d;
+          const double sin_long = std::sqrt(1.0 - cos_long * cos_long);
+          const double dlong = -c * (10.0 + r) * std::sin(lat) / (d * d * sin_long);
+          return std::hypot(10.0, 10.0 * std::cos(lat) * dlong);
+        };
+        constexpr int kIntervals = 200000;
+        const double h = std::numbers::pi / kIntervals;
+        double branch = speed(-std::numbers::pi / 2) + speed(std::numbers::pi / 2);
+        for (int k = 1; k < kIntervals; ++k) {
+          branch += (k % 2 ? 4.0 : 2.0) * speed(-std::numbers::pi / 2 + k * h);
+        }
+        branch *= h / 3.0;
+        EXPECT_NEAR(length, 2.0 * branch, 0.01) << "x = " << c << passes.UnreachableText(100);
+      }
+    }
+    // plane_cc and leading_line (its guide along Y through the pole): the contact point on the
+    // sections x = c, whose circles' whole lengths the passes and the stretches left out add up to.
+    for (const auto kind : {StrategySpec::Kind::kPlaneCc, StrategySpec::Kind::kLeadingLine}) {
+      SCOPED_TRACE(tool.Describe() + " " + StrategySpec::KindName(kind));
+      StrategySpec spec;
+      spec.kind = kind;
+      spec.range = std::array<double, 2>{-2.0, 2.0};
+      spec.stepover_mm = 1.0;
+      spec.guide = std::make_shared<const geometry::BSplineCurve>(
+          geometry::BSplineCurveData{1, {0, 0, 1, 1}, {{0, -20, 0}, {0, 20, 0}}, {}});
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // The line through the pole is one pass, carried over it: its tip at the pole's height
+      // across the bottom's diameter.
+      int over = 0, bridged = 0;
+      for (const auto& pass : passes.passes) {
+        bridged += pass->HasBridges();
+        plan(*pass, false, &over);
+      }
+      EXPECT_EQ(bridged, 1);
+      EXPECT_GT(over, 2.0 * big_r / 0.05);
+      const auto covered =
+          coverage(passes, [](const Eigen::Vector3d& p) { return std::lround(p.x() / 0.25); });
+      EXPECT_EQ(covered.size(), 5u) << passes.UnreachableText(100);
+      for (const auto& [quarter, length] : covered) {
+        const double c = static_cast<double>(quarter) * 0.25;
+        EXPECT_NEAR(length, 2.0 * std::numbers::pi * std::sqrt(100.0 - c * c), 0.01)
+            << "x = " << c << passes.UnreachableText(100);
+      }
+    }
+    {
+      SCOPED_TRACE(tool.Describe() + " uv");
+      StrategySpec spec;
+      spec.kind = StrategySpec::Kind::kUv;
+      spec.along_u = false;
+      spec.stepover_mm = 5.0;
+      const auto passes = strategies::BuildPasses(surface, tool, Orientation{}, spec);
+      // Each ends with its contact point at the pole, the bottom's edge on it.
+      int over = 0;
+      for (const auto& pass : passes.passes) {
+        plan(*pass, false, &over);
+        const Eigen::Vector3d end = pass->EndPose().tip;
+        EXPECT_NEAR(end.z(), 10.0, 1e-3);
+        EXPECT_NEAR(end.head<2>().norm(), big_r, 1e-3);
+      }
+      const auto covered = coverage(passes, [](const Eigen::Vector3d& p) {
+        return std::lround(std::atan2(p.y(), p.x()) * 1e3);
+      });
+      EXPECT_EQ(covered.size(), 8u);
+      for (const auto& [angle, length] : covered) {
+        EXPECT_NEAR(length, std::numbers::pi * 10.0, 0.01)
+            << "u = " << static_cast<double>(angle) * 1e-3 << passes.UnreachableText(100);
+      }
+    }
   }
 }
 

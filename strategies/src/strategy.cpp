@@ -833,6 +833,40 @@ class Builder {
           h *= 0.5;
           continue;
         }
+        if (status == EvalStatus::kGuideFold && skip) {
+          // The offset line folds over itself ahead (a guide bend tighter than the offset): the
+          // pass ends at the last point before the fold (to h / 4096), and the line's stretch
+          // through the fold is left out, up to where the offset line unfolds.
+          double lo = 0.0, hi = h;
+          ContactPoint before = cur, p;
+          for (int i = 0; i < 12; ++i) {
+            const double mid = 0.5 * (lo + hi);
+            EvalStatus st;
+            int n = 0;
+            if (e.Step(cur, mid, spec_.newton, &p, &st, &n) && !UnfitAt(p)) {
+              lo = mid, before = p;
+            } else {
+              hi = mid;
+            }
+          }
+          Fold fold;
+          if (AcrossFold(e, before, &fold)) {
+            why = FoldText(e.Constraint(), fold);
+            open_gap(before, s + lo);
+            gap->contact_mm = fold.contact_mm;
+            cand->trail.insert(cand->trail.end(), fold.points.begin(), fold.points.end());
+            s += lo + (fold.last.tip - before.tip).norm();
+            cur = fold.last;
+            if (!fold.resumes) return end_in_gap();
+            if (fits(cur, s)) {
+              close_gap(cur, s, true);
+            } else {
+              gap_dir = cur.duv.normalized();
+            }
+            h = full / 1024.0;
+            continue;
+          }
+        }
         Bridge piece;
         const bool top = OverTop(e, cur, s, &piece) || OverCrest(e, cur, s, &piece);
         if (top || AcrossPole(e, cur, s, &piece)) {
@@ -1335,6 +1369,170 @@ class Builder {
                                      e.Constraint().kind != PassConstraint::Kind::kPlaneCl);
   }
 
+  // A leading_line's stretch through a fold of its offset line (AcrossFold).
+  struct Fold {
+    // The line's points through it, 0.05 mm apart or more (where the line was traced).
+    std::vector<Eigen::Vector3d> points;
+    // Where the offset line unfolds (resumes), or the last point of it on the face.
+    ContactPoint last;
+    bool resumes = false;
+    double contact_mm = 0.0;         // of the line on the face through the fold
+    double least_radius = INFINITY;  // the guide's least radius of curvature along it, mm
+  };
+
+  // Guide arc length between the points a fold's stretch is measured by, mm.
+  static constexpr double kFoldStepMm = 0.01;
+
+  // The trace of a leading_line pass stops at `a`, just before the guide's radius of curvature
+  // comes within 1 % of the offset on the inside of a bend (kGuideFold): beyond it the closest
+  // point of the guide stops being one and the offset line folds over itself (a swallowtail:
+  // cusp, loop, cusp). The stretch left out is the line's points there, each the guide's point at
+  // t offset by the pass's offset along its left normal (in XY, projected along Z onto the face),
+  // from a's guide parameter on in the pass's direction to the first parameter past the bend where
+  // the fold is below 0.99 again (bisection to 1e-13 of the guide's parameter); its length is
+  // the chords between those points of the face every kFoldStepMm of the guide. The pass resumes
+  // there. Where the offset line leaves the face first (to 1e-6 of the step by bisection) or the
+  // guide ends in the bend, the line ends there. False if no fold is met within 1 mm of the guide
+  // from a (not such a place).
+  bool AcrossFold(const PassEvaluator& e, const ContactPoint& a, Fold* out) const {
+    const PassConstraint& c = e.Constraint();
+    if (c.kind != PassConstraint::Kind::kGuide || !c.guide || !std::isfinite(a.guide_t)) {
+      return false;
+    }
+    const geometry::BSplineCurve& guide = *c.guide;
+    const double offset = c.value;
+    const double t0 = guide.FirstParameter(), t1 = guide.LastParameter();
+    Eigen::Vector3d gd[3];
+    guide.Derivatives(a.guide_t, 1, gd);
+    const double way = gd[1].x() * a.tangent.x() + gd[1].y() * a.tangent.y();
+    if (!(std::abs(way) > 0.0)) return false;
+    const double sign = way > 0.0 ? 1.0 : -1.0;
+    // The guide at t: the offset point in XY, the fold (offset times curvature, signed) and the
+    // guide's speed.
+    struct OnGuide {
+      Eigen::Vector2d q;
+      double fold = 0.0, speed = 0.0;
+    };
+    const auto at = [&](double t) {
+      guide.Derivatives(t, 2, gd, sign < 0.0);
+      const Eigen::Vector2d d1(gd[1].x(), gd[1].y()), d2(gd[2].x(), gd[2].y());
+      OnGuide g;
+      g.speed = d1.norm();
+      if (!(g.speed > 0.0)) return g;
+      const Eigen::Vector2d left = Eigen::Vector2d(-d1.y(), d1.x()) / g.speed;
+      g.q = Eigen::Vector2d(gd[0].x(), gd[0].y()) + offset * left;
+      g.fold = offset * (d1.x() * d2.y() - d1.y() * d2.x()) / (g.speed * g.speed * g.speed);
+      return g;
+    };
+    // The face's point over q in XY (the contact point there), by Newton in (u, v) from uv.
+    const auto lift = [&](const Eigen::Vector2d& q, Eigen::Vector2d* uv, Eigen::Vector3d* p) {
+      geometry::SurfaceDerivatives d;
+      for (int it = 0; it < 30; ++it) {
+        if (!face_.InBox(uv->x(), uv->y())) return false;
+        face_.D2(uv->x(), uv->y(), &d);
+        const Eigen::Vector2d f(d.p.x() - q.x(), d.p.y() - q.y());
+        if (f.norm() <= 1e-10) {
+          *p = d.p;
+          return face_.Inside(uv->x(), uv->y());
+        }
+        Eigen::Matrix2d j;
+        j << d.su.x(), d.sv.x(), d.su.y(), d.sv.y();
+        if (!(std::abs(j.determinant()) > 1e-300)) return false;
+        *uv -= j.inverse() * f;
+      }
+      return false;
+    };
+    constexpr double kFold = 0.99;  // as the evaluator's refusal (surface_pass.cpp)
+    double t = a.guide_t, guide_mm = 0.0;
+    bool folded = false;
+    Eigen::Vector2d uv = a.uv;
+    Eigen::Vector3d last = a.p;
+    out->points.clear();
+    out->contact_mm = 0.0;
+    out->resumes = false;
+    double most = 0.0;  // the largest fold met
+    // Ends the stretch at the line's point at parameter `end` (lifted from uv): the pass resumes
+    // there if `resumes` and it evaluates.
+    const auto finish = [&](double end, const Eigen::Vector2d& end_uv, const Eigen::Vector3d& p,
+                            bool resumes) {
+      out->contact_mm += (p - last).norm();
+      out->points.push_back(p);
+      out->least_radius = std::abs(offset) / most;
+      const EvalStatus st = e.Evaluate(end_uv, &out->last, end);
+      if (st != EvalStatus::kOk && st != EvalStatus::kFlatContact) {
+        out->last = a;
+        out->last.uv = end_uv;
+        out->last.p = p;
+        out->resumes = false;
+        return true;
+      }
+      out->resumes = resumes && st == EvalStatus::kOk && out->last.guide_fold <= kFold &&
+                     std::abs(out->last.g) <= spec_.newton.tolerance_mm;
+      return true;
+    };
+    for (;;) {
+      const OnGuide here = at(t);
+      if (!(here.speed > 0.0)) return false;
+      const bool last_one = sign > 0.0 ? t >= t1 : t <= t0;
+      if (last_one) {
+        // The guide ends in the bend: so does the line.
+        return folded && finish(t, uv, last, false);
+      }
+      const double next = std::clamp(t + sign * kFoldStepMm / here.speed, t0, t1);
+      const OnGuide there = at(next);
+      if (!(there.speed > 0.0)) return false;
+      Eigen::Vector2d next_uv = uv;
+      Eigen::Vector3d p;
+      if (folded && !(there.fold > kFold)) {
+        // Past the bend: where the fold comes down to kFold, by bisection.
+        double lo = t, hi = next;
+        for (int i = 0; i < 200 && std::abs(hi - lo) > 1e-13 * (1.0 + std::abs(hi)); ++i) {
+          const double mid = 0.5 * (lo + hi);
+          (at(mid).fold > kFold ? lo : hi) = mid;
+        }
+        if (lift(at(hi).q, &next_uv, &p)) return finish(hi, next_uv, p, true);
+      } else if (lift(there.q, &next_uv, &p)) {
+        folded = folded || there.fold > kFold;
+        most = std::max(most, there.fold);
+        out->contact_mm += (p - last).norm();
+        if (out->points.empty() || (p - out->points.back()).norm() >= 0.05) {
+          out->points.push_back(p);
+        }
+        last = p;
+        uv = next_uv;
+        t = next;
+        guide_mm += kFoldStepMm;
+        if (!folded && guide_mm > 1.0) return false;
+        continue;
+      }
+      // The line leaves the face between t and next: to where it does, by bisection.
+      if (!folded) return false;
+      double lo = t, hi = next;
+      Eigen::Vector2d lo_uv = uv;
+      Eigen::Vector3d lo_p = last;
+      for (int i = 0; i < 20; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        Eigen::Vector2d m_uv = lo_uv;
+        Eigen::Vector3d m_p;
+        if (lift(at(mid).q, &m_uv, &m_p)) {
+          lo = mid, lo_uv = m_uv, lo_p = m_p;
+        } else {
+          hi = mid;
+        }
+      }
+      return finish(lo, lo_uv, lo_p, false);
+    }
+  }
+
+  // Why a fold's stretch is left out.
+  static std::string FoldText(const PassConstraint& c, const Fold& fold) {
+    return fmt::format(
+        "the guide curve bends tighter than the pass's offset from it (its radius of curvature "
+        "comes down to {:.4g} mm, the offset is {:.4g} mm): the offset line folds over itself; "
+        "use offsets below the guide's radius of curvature or a smoother guide",
+        fold.least_radius, std::abs(c.value));
+  }
+
   // The trace, at contact point `cur` (arc length s), cannot step on: where a flat end or bull
   // nose on a fixed axis comes onto a top or a crest of the face along a strategy line that
   // holds the contact point (uv, plane_cc, leading_line), the piece over it (Bridge). The contact
@@ -1345,6 +1543,7 @@ class Builder {
   // False if this is not such a place: another tool, orientation or strategy, no point ahead on
   // the line where the normal's part across the axis turns over, or a face that does not bend
   // away from the tool all round there (a saddle, a valley: the bottom would rest on two places).
+  // A pole on top of the face within 0.01 mm of cur (a sphere's) is the crest itself.
   bool OverCrest(const PassEvaluator& e, const ContactPoint& cur, double s, Bridge* piece) const {
     const PassConstraint& c = e.Constraint();
     if (!(tool_.TorusRadius() > 0.0) || orientation_.kind != Orientation::Kind::kFixed ||
@@ -1358,6 +1557,61 @@ class Builder {
     // Which side of the crest a contact point is on: + before it (the bottom's edge on this
     // side), - past it; 0 sitting flat.
     const auto before = [&](const ContactPoint& p) { return (p.n - p.n.dot(a) * a).dot(w_in); };
+    constexpr double kPast = 1e-4;
+    // A crest at a pole on top (a sphere's pole on a plane_cc or leading_line line through it):
+    // (u, v) is degenerate there and the line cannot be marched through it. The pole is the
+    // crest; the contact point leaves it on the far side, at the first point of the line, by
+    // doubling from kPast from the pole (the parameter line leaving the pole nearest the
+    // direction the contact point came in, of 720, then Newton across the line), whose tip it
+    // fixes.
+    Pole pole;
+    const bool iso = c.kind == PassConstraint::Kind::kIsoU || c.kind == PassConstraint::Kind::kIsoV;
+    if (!iso && PoleNear(cur, 1e-2, &pole)) {
+      const Eigen::Vector3d n =
+          pole.inside.su.cross(pole.inside.sv).normalized() * static_cast<double>(side_);
+      const Eigen::Vector3d in = pole.at.p - cur.p;
+      if (n.dot(a) < 1.0 - 1e-9 || CurvatureTowards(pole.inside, n) > 1e-9 || !(in.norm() > 0.0)) {
+        return false;
+      }
+      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
+      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
+      ContactPoint exit;
+      bool past_it = false;
+      for (double past = kPast; past <= tool_.radius && !past_it; past *= 2.0) {
+        const Eigen::Vector3d target = pole.at.p + in.normalized() * past;
+        Eigen::Vector2d q = pole.uv, uv = pole.uv;
+        q[pole.fixed] += pole.inward * past / pole.across_mm;
+        geometry::SurfaceDerivatives dq;
+        double best = INFINITY;
+        constexpr int kScan = 720;
+        for (int k = 0; k <= kScan; ++k) {
+          q[m] = m0 + (m1 - m0) * k / kScan;
+          face_.D2(q.x(), q.y(), &dq);
+          if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), uv = q;
+        }
+        for (int it = 0; it < 20; ++it) {
+          if (!face_.InBox(uv.x(), uv.y()) || !Evaluates(e, uv, &exit, cur.guide_t)) break;
+          if (std::abs(exit.g) <= spec_.newton.tolerance_mm) {
+            past_it =
+                e.Evaluate(exit.uv, &exit, cur.guide_t) == EvalStatus::kOk && before(exit) < 0.0;
+            break;
+          }
+          const double n2 = exit.dg.squaredNorm();
+          if (!(n2 > 0.0)) break;
+          uv -= exit.dg * (exit.g / n2);
+        }
+      }
+      if (!past_it || !e.Inside(exit.uv) || exit.tangent.dot(cur.tangent) < 0.0) return false;
+      piece->entry = cur;
+      piece->exit = exit;
+      piece->top_uv = pole.uv;
+      piece->top = pole.at.p;
+      piece->tip_in = cur.tip;
+      piece->direction = (exit.tip - cur.tip).normalized();
+      piece->s_start = piece->s_in = s;
+      piece->s_out = piece->s_exit = s + (exit.tip - cur.tip).norm();
+      return true;
+    }
     // The contact point `length` mm along the line from cur (false: the line cannot be followed).
     const auto along = [&](double length, ContactPoint* out) {
       Eigen::Vector2d dir = cur.duv.normalized();
@@ -1365,7 +1619,6 @@ class Builder {
     };
     // The first point past the crest, by doubling from 1e-4 mm (the trace's last step), at most
     // a tool radius ahead.
-    constexpr double kPast = 1e-4;
     double lo = 0.0, hi = kPast;
     ContactPoint p;
     for (;; hi *= 2.0) {
@@ -1429,6 +1682,9 @@ class Builder {
     for (int it = 0; it < 30; ++it) {
       face_.D2(uv.x(), uv.y(), &d);
       const Eigen::Vector3d big_n = d.su.cross(d.sv);
+      // No normal here (a pole): tried below.
+      const double longer = std::max(d.su.norm(), d.sv.norm());
+      if (!(big_n.norm() > 1e-10 * longer * longer)) break;
       const Eigen::Vector2d f(big_n.dot(e1), big_n.dot(e2));
       if (f.norm() <= 1e-13 * big_n.norm()) {
         found = true;
@@ -1445,11 +1701,17 @@ class Builder {
       cod.setThreshold(1e-9);
       uv -= cod.compute(j).solve(f);
     }
-    if (!found || (d.p - cur.p).norm() > 1e-2) return false;
-    const Eigen::Vector3d n = d.su.cross(d.sv).normalized() * static_cast<double>(side_);
-    if (n.dot(a) < 0.0) return false;
+    // A top at a pole of the parametrization (a sphere's pole on top): S_u x S_v vanishes there,
+    // so the Newton finds no normal; the pole is the top if the normal next to it is the axis.
+    Pole pole;
+    const bool at_pole = !(found && (d.p - cur.p).norm() <= 1e-2) && PoleNear(cur, 1e-2, &pole);
+    if (!at_pole && (!found || (d.p - cur.p).norm() > 1e-2)) return false;
+    if (at_pole) uv = pole.uv, d = pole.at;
+    const geometry::SurfaceDerivatives& bend = at_pole ? pole.inside : d;
+    const Eigen::Vector3d n = bend.su.cross(bend.sv).normalized() * static_cast<double>(side_);
+    if (at_pole ? n.dot(a) < 1.0 - 1e-9 : n.dot(a) < 0.0) return false;
     // Bends away from the tool all round (a crest's zero curvature along it too).
-    if (CurvatureTowards(d, n) > 1e-9) return false;
+    if (CurvatureTowards(bend, n) > 1e-9) return false;
     // The bottom's disc around the top, cut by the strategy's plane.
     const Eigen::Vector3d across = c.normal - c.normal.dot(a) * a;
     if (across.norm() < 1e-9) return false;
@@ -1465,9 +1727,28 @@ class Builder {
     // The contact point leaving the top on the far side, just past the chord.
     constexpr double kPast = 1e-4;
     const Eigen::Vector3d away = (tip_out - d.p).normalized();
-    Eigen::Matrix<double, 3, 2> dp;
-    dp << d.su, d.sv;
-    const Eigen::Vector2d guess = uv + dp.completeOrthogonalDecomposition().solve(away * kPast);
+    Eigen::Vector2d guess;
+    if (at_pole) {
+      // (u, v) is degenerate at a pole: of the parameter lines leaving it (720 of them), the
+      // point kPast from the pole that is nearest the pole moved kPast away, as AcrossPole does.
+      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
+      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
+      const Eigen::Vector3d target = d.p + away * kPast;
+      Eigen::Vector2d q = uv;
+      q[pole.fixed] += pole.inward * kPast / pole.across_mm;
+      geometry::SurfaceDerivatives dq;
+      double best = INFINITY;
+      constexpr int kScan = 720;
+      for (int k = 0; k <= kScan; ++k) {
+        q[m] = m0 + (m1 - m0) * k / kScan;
+        face_.D2(q.x(), q.y(), &dq);
+        if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), guess = q;
+      }
+    } else {
+      Eigen::Matrix<double, 3, 2> dp;
+      dp << d.su, d.sv;
+      guess = uv + dp.completeOrthogonalDecomposition().solve(away * kPast);
+    }
     ContactPoint exit;
     EvalStatus status;
     if (e.SolveChord(tip_out, kPast, guess, spec_.newton, &exit, &status) < 0 ||
@@ -1486,6 +1767,40 @@ class Builder {
     piece->s_out = piece->s_in + 2.0 * half;
     piece->s_exit = piece->s_out + (exit.tip - tip_out).norm();
     return true;
+  }
+
+  // A collapsed edge of the UV box (a pole: S_u or S_v vanishes along it).
+  struct Pole {
+    Eigen::Vector2d uv;               // on the edge, at the contact point's other parameter
+    int fixed = 0;                    // the parameter that is constant along the edge (0: u, 1: v)
+    double inward = 1.0;              // the sign of a step of that parameter into the box
+    double across_mm = 0.0;           // |dS / d(that parameter)| at the edge, mm per unit
+    geometry::SurfaceDerivatives at;  // at uv
+    geometry::SurfaceDerivatives inside;  // 1e-6 of the box inside, where the normal is defined
+  };
+
+  // The pole whose point is within `near` mm of contact point c, if any.
+  bool PoleNear(const ContactPoint& c, double near, Pole* pole) const {
+    for (int k = 0; k < 2; ++k) {
+      const double lo = k == 0 ? face_.U0() : face_.V0(), hi = k == 0 ? face_.U1() : face_.V1();
+      for (const double edge : {lo, hi}) {
+        Eigen::Vector2d uv = c.uv;
+        uv[k] = edge;
+        face_.D2(uv.x(), uv.y(), &pole->at);
+        const Eigen::Vector3d& along = k == 0 ? pole->at.sv : pole->at.su;
+        const Eigen::Vector3d& across = k == 0 ? pole->at.su : pole->at.sv;
+        if (!(along.norm() < 1e-9 * across.norm()) || (pole->at.p - c.p).norm() > near) continue;
+        pole->uv = uv;
+        pole->fixed = k;
+        pole->inward = edge == lo ? 1.0 : -1.0;
+        pole->across_mm = across.norm();
+        Eigen::Vector2d in = uv;
+        in[k] += pole->inward * 1e-6 * (hi - lo);
+        face_.D2(in.x(), in.y(), &pole->inside);
+        return true;
+      }
+    }
+    return false;
   }
 
   // The trace, at contact point `cur` (arc length s), cannot step on because the contact point
