@@ -147,7 +147,7 @@ Deepest DeepestAlongPasses(const io::SurfaceSetup& setup, double r,
   std::vector<Bnd_Box> boxes;
   for (const auto& w : walls) {
     Bnd_Box b;
-    BRepBndLib::Add(w.first, b);
+    BRepBndLib::AddOptimal(w.first, b, false, false);
     b.Enlarge(r + 0.1);
     boxes.push_back(b);
   }
@@ -202,6 +202,44 @@ TEST(CheckFaces, NoNeighbourGoesIntoTheToolBetweenTheCheckedPoints) {
     const Deepest d = DeepestAlongPasses(setup, 1.0, walls, 0.05);
     EXPECT_LE(d.depth, job.surface->check_tolerance_mm) << d.where;
     EXPECT_GT(d.depth, -0.01) << d.where;  // the passes come to the walls
+    // And as planned, along the side walls: the middle of every other period of the job (passes,
+    // links, moves riding over a stretch), between two setpoints, the tip's XYZ being the table's
+    // first three columns.
+    if (std::string(planes).rfind("plane_normal = [1", 0) != 0) continue;
+    const io::RunResult r = io::RunJob(job);
+    ASSERT_TRUE(r.verify.Passed());
+    const auto& c = r.table.columns;
+    std::vector<Bnd_Box> boxes;
+    for (const auto& w : walls) {
+      Bnd_Box b;
+      BRepBndLib::AddOptimal(w.first, b, false, false);
+      b.Enlarge(1e-3);
+      boxes.push_back(b);
+    }
+    double deepest = -INFINITY;
+    std::string where;
+    for (std::size_t k = 0; k + 1 < c[0].size(); k += 2) {
+      for (const double t : {0.5}) {
+        const Eigen::Vector3d tip((1 - t) * c[0][k] + t * c[0][k + 1],
+                                  (1 - t) * c[1][k] + t * c[1][k + 1],
+                                  (1 - t) * c[2][k] + t * c[2][k + 1]);
+        for (std::size_t w = 0; w < walls.size(); ++w) {
+          // (The tool lies within its radius of its axis from the ball's centre up.)
+          Bnd_Box column;
+          column.Add(gp_Pnt(tip.x(), tip.y(), tip.z() + 1.0));
+          column.Add(gp_Pnt(tip.x(), tip.y(), tip.z() + 101.0));
+          column.Enlarge(1.0);
+          if (boxes[w].IsOut(column)) continue;
+          const double depth = DepthIn(walls[w].first, 1.0, tip, Eigen::Vector3d::UnitZ());
+          if (depth > deepest) {
+            deepest = depth;
+            where = fmt::format("setpoint {} + {}, tip ({:.5f}, {:.5f}, {:.5f}), {}", k, t, tip.x(),
+                                tip.y(), tip.z(), walls[w].second);
+          }
+        }
+      }
+    }
+    EXPECT_LE(deepest, job.surface->check_tolerance_mm) << where;
   }
 }
 
