@@ -239,17 +239,29 @@ double CheckFaces::Displacement(const Vector3d& tip_a, const Vector3d& axis_a,
   const double moved = (tip_b - tip_a).norm();
   const double turn = (axis_b - axis_a).norm();
   if (!(turn > 0.0) || faces_.empty()) return moved;
-  // The tool's points within the faces' box widened by its radius lie at most this far up the
-  // axis from either tip; a point at distance l from the tip moves by at most l times the chord.
+  // Only the tool's points within a millimetre of the faces' box can come near a face: those
+  // whose point of the axis at their height lies in the box widened by the tool's radius and a
+  // millimetre. How far up the axis from the tip that reaches, at either pose (the ray through
+  // the widened box, by its slabs); a point at distance l from the tip moves by at most l times
+  // the chord between the axes.
   const double outer = tool_.radius;
-  double up = 0.0;
-  for (int k = 0; k < 8; ++k) {
-    const Vector3d corner((k & 1) ? hi_.x() : lo_.x(), (k & 2) ? hi_.y() : lo_.y(),
-                          (k & 4) ? hi_.z() : lo_.z());
-    up = std::max({up, (corner - tip_a).norm(), (corner - tip_b).norm()});
-  }
-  // (Widened: a tool point within a millimetre or so of a face may lie just outside the box.)
-  up = std::min(up + 2.0 * (outer + 1.0), length_mm_);
+  const Vector3d lo = lo_ - Vector3d::Constant(outer + 1.0),
+                 hi = hi_ + Vector3d::Constant(outer + 1.0);
+  const auto reach_up = [&](const Vector3d& tip, const Vector3d& axis) {
+    double t0 = 0.0, t1 = length_mm_;
+    for (int i = 0; i < 3; ++i) {
+      if (std::abs(axis[i]) < 1e-12) {
+        if (tip[i] < lo[i] || tip[i] > hi[i]) return 0.0;
+        continue;
+      }
+      double a = (lo[i] - tip[i]) / axis[i], b = (hi[i] - tip[i]) / axis[i];
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+    }
+    return t1 >= t0 ? t1 : 0.0;
+  };
+  const double up = std::max(reach_up(tip_a, axis_a), reach_up(tip_b, axis_b));
   return moved + std::hypot(up, outer) * turn;
 }
 

@@ -75,11 +75,12 @@ class CheckFaces {
   };
   Near Around(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, double reach_mm) const;
 
-  // The most any point of the tool that can come near a face moves from the pose (tip_a, axis_a)
-  // to (tip_b, axis_b) (mm): the tip's move, plus the turn of the axis (the chord between the
-  // unit axes) times the distance from the tip of the farthest tool point inside the faces'
-  // bounding box widened by the tool's radius. A face `clearance_mm` from the tool at one pose is
-  // at least clearance_mm less this from it at the other.
+  // The most any point of the tool that can come within a millimetre of a face moves from the
+  // pose (tip_a, axis_a) to (tip_b, axis_b) (mm): the tip's move, plus the turn of the axis (the
+  // chord between the unit axes) times the distance from the tip of the farthest such point (at
+  // a height where the axis is inside the faces' bounding box widened by the tool's radius and a
+  // millimetre, at either pose). A face `clearance_mm` (< 1 mm) from the tool at one pose is at
+  // least clearance_mm less this from it at the other.
   double Displacement(const Eigen::Vector3d& tip_a, const Eigen::Vector3d& axis_a,
                       const Eigen::Vector3d& tip_b, const Eigen::Vector3d& axis_b) const;
 
