@@ -122,7 +122,8 @@ struct SurfaceCounts {
 // threads.
 //   build/bench/dtis_bench --benchmark_filter=Surface/
 void Surface(benchmark::State& state, const char* job_file) {
-  const auto job = dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+  const auto job = dtis::io::LoadJob(
+      job_file[0] == '/' ? std::string(job_file) : std::string(DTIS_SOURCE_DIR) + "/" + job_file);
   dtis::io::RunOptions options;
   options.threads = static_cast<int>(state.range(0));
   SurfaceCounts counts;
@@ -202,6 +203,36 @@ BENCHMARK_CAPTURE(SurfacePlannerHoles, holes_vpop, PlannerKind::kVpop)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 
+// The face with holes beside 54 other faces of its part, all checked (the default): pins in the
+// holes, walls at its sides, a grid of bosses beyond (bench/face_with_holes.hpp). The whole job,
+// one thread: the checks are part of tracing the passes.
+//   build/bench/dtis_bench --benchmark_filter='Surface(HolesAmongOthers|/cubic_wave_5axis)'
+// checks:0 turns the checks off (`check_faces = "none"`): what they cost.
+void SurfaceHolesAmongOthers(benchmark::State& state) {
+  static const std::string file = dtis::bench::WriteFaceWithHolesAmongOthersJob();
+  auto job = dtis::io::LoadJob(file);
+  if (state.range(0) == 0) job.surface->check_faces.emplace();
+  dtis::io::RunOptions options;
+  options.threads = 1;
+  SurfaceCounts counts;
+  for (auto _ : state) {
+    const auto r = dtis::io::RunJob(job, options);
+    counts.Add(r.vpop, r.verify.motion_time_s);
+    benchmark::DoNotOptimize(r);
+  }
+  counts.Report(state);
+}
+BENCHMARK(SurfaceHolesAmongOthers)
+    ->ArgName("checks")
+    ->Arg(1)
+    ->Arg(0)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+// The whole cubic wave finished 5-axis, its axis smoothed (bench/jobs/cubic_wave_5axis.toml).
+BENCHMARK_CAPTURE(Surface, cubic_wave_5axis, "bench/jobs/cubic_wave_5axis.toml")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(Surface, tilt10_xyzac, "samples/jobs/surface_tilt10_xyzac.toml")
     ->Arg(1)
     ->Arg(2)

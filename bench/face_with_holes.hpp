@@ -12,4 +12,12 @@ namespace dtis::bench {
 // temporary folder (removed at exit). Returns the job's path.
 std::string WriteFaceWithHolesJob();
 
+// The same face as the floor of a pocket in a part of 55 other faces, all in one STEP file whose
+// other faces the job checks (its default): a pin of 4 mm radius standing 10 mm tall in each
+// hole, the pocket's four walls at the face's sides (the passes along y end 1 mm short of two of
+// them), the part's top (220 x 140 mm at z = 10, the pocket's opening cut out of it) and on it,
+// 20 to 80 mm beyond the pocket, 24 bosses (a side and a top each) the tool never comes near.
+// Returns the job's path.
+std::string WriteFaceWithHolesAmongOthersJob();
+
 }  // namespace dtis::bench

@@ -75,6 +75,83 @@ struct Box {
   }
   Vector3d Centre() const { return 0.5 * (lo + hi); }
   double HalfDiagonal() const { return 0.5 * (hi - lo).norm(); }
+  void Add(const Box& b) {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+};
+
+// A bounding-volume hierarchy of boxes (items 0..n-1): each node splits its items at the median
+// of their centres along its box's longest side, down to leaves of at most kLeaf items.
+class BoxTree {
+ public:
+  BoxTree() = default;
+  explicit BoxTree(const std::vector<Box>& boxes) : boxes_(boxes) {
+    order_.resize(boxes.size());
+    for (std::size_t i = 0; i < order_.size(); ++i) order_[i] = static_cast<int>(i);
+    if (order_.empty()) return;
+    nodes_.resize(1);
+    Split(0, 0, static_cast<int>(order_.size()));
+  }
+
+  // Calls visit(item) for every item whose node boxes all pass `near(centre, half_diagonal)`
+  // (false prunes the node), the item's own box included.
+  template <typename Near, typename Visit>
+  void Query(const Near& near, const Visit& visit) const {
+    if (nodes_.empty()) return;
+    int stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& n = nodes_[static_cast<std::size_t>(stack[--top])];
+      if (!near(n.centre, n.half_diagonal)) continue;
+      if (n.left < 0) {
+        for (int i = n.first; i < n.first + n.count; ++i) {
+          const Box& b = boxes_[static_cast<std::size_t>(order_[static_cast<std::size_t>(i)])];
+          if (near(b.Centre(), b.HalfDiagonal())) visit(order_[static_cast<std::size_t>(i)]);
+        }
+        continue;
+      }
+      stack[top++] = n.left;
+      stack[top++] = n.left + 1;
+    }
+  }
+
+ private:
+  static constexpr int kLeaf = 4;
+  struct Node {
+    Vector3d centre;
+    double half_diagonal;
+    int left = -1;  // the children are left and left + 1; -1 for a leaf
+    int first = 0, count = 0;
+  };
+
+  // Fills node `at` with items [first, first + count) of order_, splitting it while it holds
+  // more than a leaf.
+  void Split(std::size_t at, int first, int count) {
+    Box box;
+    for (int i = first; i < first + count; ++i) {
+      box.Add(boxes_[static_cast<std::size_t>(order_[static_cast<std::size_t>(i)])]);
+    }
+    nodes_[at] = {box.Centre(), box.HalfDiagonal(), -1, first, count};
+    if (count <= kLeaf) return;
+    int axis = 0;
+    (box.hi - box.lo).maxCoeff(&axis);
+    const auto begin = order_.begin() + first, end = begin + count, mid = begin + count / 2;
+    std::nth_element(begin, mid, end, [&](int a, int b) {
+      return boxes_[static_cast<std::size_t>(a)].Centre()[axis] <
+             boxes_[static_cast<std::size_t>(b)].Centre()[axis];
+    });
+    const std::size_t left = nodes_.size();
+    nodes_.resize(left + 2);
+    nodes_[at].left = static_cast<int>(left);
+    Split(left, first, count / 2);
+    Split(left + 1, first + count / 2, count - count / 2);
+  }
+
+  std::vector<Box> boxes_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
 };
 
 }  // namespace
@@ -96,12 +173,18 @@ struct CheckFaces::Sampled {
     double half_diagonal;
   };
   std::vector<Block> blocks;
+  BoxTree block_tree;  // the blocks' boxes
   // A trimmed face's loops, sampled a sixteenth of the grid's spacing apart: the descent stops at
   // a loop, so the deepest point on one (the rim of a hole) is found among these. Blocks of 64
   // consecutive points ([i0, i1)).
   std::vector<Vector3d> rim;
   std::vector<Vector2d> rim_uv;
   std::vector<Block> rim_blocks;
+  BoxTree rim_tree;
+};
+
+struct CheckFaces::Tree {
+  BoxTree faces;
 };
 
 struct CheckFaces::Face {
@@ -125,14 +208,61 @@ CheckFaces::CheckFaces(std::vector<NamedFace> faces, const Tool& tool, double le
     face->named = std::move(f);
     faces_.push_back(std::move(face));
   }
+  BuildTree();
 }
 
 CheckFaces::~CheckFaces() = default;
 
+void CheckFaces::BuildTree() {
+  std::vector<Box> boxes;
+  Box all;
+  for (const auto& f : faces_) {
+    boxes.push_back(f->box);
+    all.Add(f->box);
+  }
+  lo_ = all.lo;
+  hi_ = all.hi;
+  auto tree = std::make_shared<Tree>();
+  tree->faces = BoxTree(boxes);
+  tree_ = std::move(tree);
+}
+
 CheckFaces CheckFaces::Without(std::size_t except) const {
   CheckFaces less = *this;
   less.faces_.erase(less.faces_.begin() + static_cast<std::ptrdiff_t>(except));
+  less.BuildTree();
   return less;
+}
+
+double CheckFaces::Displacement(const Vector3d& tip_a, const Vector3d& axis_a,
+                                const Vector3d& tip_b, const Vector3d& axis_b) const {
+  const double moved = (tip_b - tip_a).norm();
+  const double turn = (axis_b - axis_a).norm();
+  if (!(turn > 0.0) || faces_.empty()) return moved;
+  // Only the tool's points within a millimetre of the faces' box can come near a face: those
+  // whose point of the axis at their height lies in the box widened by the tool's radius and a
+  // millimetre. How far up the axis from the tip that reaches, at either pose (the ray through
+  // the widened box, by its slabs); a point at distance l from the tip moves by at most l times
+  // the chord between the axes.
+  const double outer = tool_.radius;
+  const Vector3d lo = lo_ - Vector3d::Constant(outer + 1.0),
+                 hi = hi_ + Vector3d::Constant(outer + 1.0);
+  const auto reach_up = [&](const Vector3d& tip, const Vector3d& axis) {
+    double t0 = 0.0, t1 = length_mm_;
+    for (int i = 0; i < 3; ++i) {
+      if (std::abs(axis[i]) < 1e-12) {
+        if (tip[i] < lo[i] || tip[i] > hi[i]) return 0.0;
+        continue;
+      }
+      double a = (lo[i] - tip[i]) / axis[i], b = (hi[i] - tip[i]) / axis[i];
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+    }
+    return t1 >= t0 ? t1 : 0.0;
+  };
+  const double up = std::max(reach_up(tip_a, axis_a), reach_up(tip_b, axis_b));
+  return moved + std::hypot(up, outer) * turn;
 }
 
 const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
@@ -190,6 +320,7 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
       }
     }
     out->cover = 0.55 * cover;
+    std::vector<Box> block_boxes;
     for (int i0 = 0; i0 < out->nu; i0 += kBlock) {
       for (int j0 = 0; j0 < out->nv; j0 += kBlock) {
         Sampled::Block b{i0,
@@ -211,8 +342,10 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
         b.centre = box.Centre();
         b.half_diagonal = box.HalfDiagonal();
         out->blocks.push_back(b);
+        block_boxes.push_back(box);
       }
     }
+    out->block_tree = BoxTree(block_boxes);
     if (s.Trimmed()) {
       // The loops, refined until their chords are a sixteenth of the grid's spacing.
       int per_edge = 64;
@@ -233,13 +366,16 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
         if (longest <= wanted) break;
         per_edge = std::min(20000, static_cast<int>(std::ceil(per_edge * longest / wanted)));
       }
+      std::vector<Box> rim_boxes;
       for (std::size_t i0 = 0; i0 < out->rim.size(); i0 += 64) {
         const std::size_t i1 = std::min(out->rim.size(), i0 + 64);
         Box box;
         for (std::size_t i = i0; i < i1; ++i) box.Add(out->rim[i]);
         out->rim_blocks.push_back(
             {static_cast<int>(i0), static_cast<int>(i1), 0, 0, box.Centre(), box.HalfDiagonal()});
+        rim_boxes.push_back(box);
       }
+      out->rim_tree = BoxTree(rim_boxes);
     }
     face.samples = std::move(out);
   });
@@ -247,46 +383,71 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
 }
 
 std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vector3d& axis) const {
-  std::optional<Hit> deepest;
+  return Around(tip, axis, 0.0).hit;
+}
+
+CheckFaces::Near CheckFaces::Around(const Vector3d& tip, const Vector3d& axis,
+                                    double reach_mm) const {
+  Near out;
+  out.clearance_mm = reach_mm;
+  std::optional<Hit>& deepest = out.hit;
   const auto record = [&](const Face& face, double d, const Vector3d& at, const Vector2d& uv) {
+    out.clearance_mm = std::min(out.clearance_mm, d);
     if (-d > tolerance_mm_ && (!deepest || -d > deepest->depth_mm)) {
       deepest = Hit{-d, at, uv, face.named.where};
     }
   };
-  for (const auto& face_ptr : faces_) {
-    const Face& face = *face_ptr;
-    // The face's box against the tool's: the tool lies within R + r of the segment of its axis
-    // from the tip up its length (clipped to the face's box, which it cannot reach past).
-    if (Measure(tool_, length_mm_, tip, axis, face.box.Centre()).d > face.box.HalfDiagonal()) {
-      continue;
-    }
+  const auto distance = [&](const Vector3d& q) {
+    return Measure(tool_, length_mm_, tip, axis, q).d;
+  };
+  std::vector<int> near_faces;
+  // A box within `reach_mm` of the tool: the tool lies within R + r of the segment of its axis
+  // from the tip up its length, and every point of the box within its half diagonal of the
+  // centre.
+  tree_->faces.Query(
+      [&](const Vector3d& centre, double half) { return distance(centre) <= half + reach_mm; },
+      [&](int k) { near_faces.push_back(k); });
+  std::sort(near_faces.begin(), near_faces.end());  // (in the list's order, as before)
+  for (const int k : near_faces) {
+    const Face& face = *faces_[static_cast<std::size_t>(k)];
     const Sampled& s = Samples(face);
     struct Seed {
       double d;
       std::size_t k;
     };
     std::vector<Seed> seeds;
-    for (const Sampled::Block& b : s.blocks) {
-      if (Measure(tool_, length_mm_, tip, axis, b.centre).d > b.half_diagonal + s.cover) continue;
-      Seed best{INFINITY, 0};
-      for (int i = b.i0; i < b.i1; ++i) {
-        for (int j = b.j0; j < b.j1; ++j) {
-          const std::size_t k = static_cast<std::size_t>(i) * s.nv + j;
-          if (!s.on[k]) continue;
-          const double d = Measure(tool_, length_mm_, tip, axis, s.p[k]).d;
-          if (d < best.d) best = {d, k};
-        }
-      }
-      if (best.d < -tolerance_mm_) record(face, best.d, s.p[best.k], s.uv[best.k]);
-      if (best.d < s.cover) seeds.push_back(best);
-    }
-    for (const Sampled::Block& b : s.rim_blocks) {
-      if (Measure(tool_, length_mm_, tip, axis, b.centre).d > b.half_diagonal) continue;
-      for (int i = b.i0; i < b.i1; ++i) {
-        const auto k = static_cast<std::size_t>(i);
-        record(face, Measure(tool_, length_mm_, tip, axis, s.rim[k]).d, s.rim[k], s.rim_uv[k]);
-      }
-    }
+    s.block_tree.Query([&](const Vector3d& centre,
+                           double half) { return distance(centre) <= half + s.cover + reach_mm; },
+                       [&](int index) {
+                         const Sampled::Block& b = s.blocks[static_cast<std::size_t>(index)];
+                         Seed best{INFINITY, 0};
+                         for (int i = b.i0; i < b.i1; ++i) {
+                           for (int j = b.j0; j < b.j1; ++j) {
+                             const std::size_t k = static_cast<std::size_t>(i) * s.nv + j;
+                             if (!s.on[k]) continue;
+                             const double d = distance(s.p[k]);
+                             if (d < best.d) best = {d, k};
+                           }
+                         }
+                         if (best.d < -tolerance_mm_)
+                           record(face, best.d, s.p[best.k], s.uv[best.k]);
+                         if (best.d < s.cover) {
+                           seeds.push_back(best);
+                         } else {
+                           // Every point of the face in the block's cells lies within `cover` of a
+                           // sample.
+                           out.clearance_mm = std::min(out.clearance_mm, best.d - s.cover);
+                         }
+                       });
+    s.rim_tree.Query(
+        [&](const Vector3d& centre, double half) { return distance(centre) <= half + reach_mm; },
+        [&](int index) {
+          const Sampled::Block& b = s.rim_blocks[static_cast<std::size_t>(index)];
+          for (int i = b.i0; i < b.i1; ++i) {
+            const auto k = static_cast<std::size_t>(i);
+            record(face, distance(s.rim[k]), s.rim[k], s.rim_uv[k]);
+          }
+        });
     if (seeds.empty()) continue;
     // From each seed, descend on the exact face: a step along the distance's gradient projected
     // onto the tangent plane, mapped to (u, v) and projected onto the UV box (the deepest point
@@ -332,7 +493,7 @@ std::optional<CheckFaces::Hit> CheckFaces::Into(const Vector3d& tip, const Vecto
       record(face, d, q, uv);
     }
   }
-  return deepest;
+  return out;
 }
 
 }  // namespace dtis::geometry

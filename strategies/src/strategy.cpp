@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -933,8 +934,18 @@ class Builder {
       if (out_chord > 0.0) {
         const ContactPoint end = Bisect(e, cur, 1.0, out_chord);
         const double arc = ArcFromChord((end.tip - cur.tip).norm(), cur.tangent, end.tangent);
-        if (!fits(end, s + arc)) {
+        const bool fits_at_end = fits(end, s + arc);
+        if (fits_at_end) {
+          if (const auto x = FirstIntoAlong(e, cur, end, arc)) {
+            h = *x;
+            continue;
+          }
+        } else {
           const Change c = change(true, arc, cur, tip_step(cur));
+          if (const auto x = FirstIntoAlong(e, cur, c.fit, c.x_fit)) {
+            h = *x;
+            continue;
+          }
           open_gap(c.fit, s + c.x_fit);
           gap->contact_mm = (end.p - c.fit.p).norm();
           close_gap(end, s + arc, false);
@@ -956,10 +967,19 @@ class Builder {
         // The gap starts after the last point where the tool fits; the march goes on from the
         // first where it does not.
         const Change c = change(true, h, cur, tip_step(cur));
+        if (const auto x = FirstIntoAlong(e, cur, c.fit, c.x_fit)) {
+          h = *x;
+          continue;
+        }
         open_gap(c.fit, s + c.x_fit);
         gap->contact_mm = (c.unfit.p - c.fit.p).norm();
         cur = c.unfit;
         s += c.x_unfit;
+        continue;
+      }
+      if (const auto x = FirstIntoAlong(e, cur, next, h)) {
+        // A checked face comes into the tool between the two: the step ends where it does.
+        h = *x;
         continue;
       }
       AddKnotLines(e, cur, next, s, h, &cand->knot_lines);
@@ -1226,6 +1246,18 @@ class Builder {
       for (std::size_t i = first; i <= last; ++i) {
         if (const auto why = UnfitAt(points[i]))
           FailSmoothing(exact, points[i].s, points[i].uv, *why);
+        // The checked faces between the points too (FirstInto).
+        if (i < last) {
+          if (const auto x =
+                  FirstIntoAlong(e, points[i], points[i + 1], points[i + 1].s - points[i].s)) {
+            ContactPoint p;
+            EvalStatus st;
+            int its = 0;
+            if (e.Step(points[i], *x, o, &p, &st, &its)) {
+              if (const auto why = UnfitAt(p)) FailSmoothing(exact, p.s, p.uv, *why);
+            }
+          }
+        }
       }
       // Where the tool first (last) fits, between two points: bisection to 1/4096 of their step.
       const auto fits_from = [&](const ContactPoint& from, double step, bool fit_at_end) {
@@ -1876,9 +1908,104 @@ class Builder {
       q.tip = (1.0 - t) * a.tip + t * b.tip;
       q.axis = geometry::StraightMoveAxis(a.tip, b.tip, a.axis, b.axis, t);
       if (DeepestToolPoint(q).depth > kGougeMm) return false;
-      if (spec_.check && spec_.check->Into(q.tip, q.axis)) return false;
+    }
+    // The checked faces all along the move, not only at its samples (FirstInto).
+    if (spec_.check) {
+      const auto pose = [&](double x, Placed* out) {
+        const double t = chord > 0.0 ? x / chord : 0.0;
+        out->tip = (1.0 - t) * a.tip + t * b.tip;
+        out->axis = geometry::StraightMoveAxis(a.tip, b.tip, a.axis, b.axis, t);
+        return true;
+      };
+      if (NeighboursAt({a.tip, a.axis}).hit || NeighboursAt({b.tip, b.axis}).hit ||
+          FirstInto(pose, {a.tip, a.axis}, {b.tip, b.axis}, chord)) {
+        return false;
+      }
     }
     return true;
+  }
+
+  // A pose of the tool: its tip and unit axis.
+  struct Placed {
+    Eigen::Vector3d tip, axis;
+  };
+
+  // Clearances of the checked faces this far from the tool are found (mm): a check within that
+  // of the last few (the most the tool moved since, CheckFaces::Displacement) is not made.
+  static constexpr double kCheckReachMm = 0.5;
+  // FirstInto halves a way no further than this (mm).
+  static constexpr double kShortestBetweenMm = 1e-4;
+
+  struct Neighbours {
+    std::optional<geometry::CheckFaces::Hit> hit;
+    double clearance_mm = 0.0;  // no checked face nearer the tool (at most kCheckReachMm)
+  };
+
+  // The checked faces around the tool at pose q (spec_.check): a face deeper in it than the
+  // check's tolerance, and the clearance. Where q lies within the clearance found at one of the
+  // last kRemembered poses checked, less the most the tool moved from it, no face can be nearer
+  // than what is left of it: nothing is looked at.
+  Neighbours NeighboursAt(const Placed& q) const {
+    const geometry::CheckFaces& check = *spec_.check;
+    double best = -INFINITY;
+    for (const Remembered& m : remembered_) {
+      if (!(m.clearance_mm > 0.0)) continue;
+      best =
+          std::max(best, m.clearance_mm - check.Displacement(m.at.tip, m.at.axis, q.tip, q.axis));
+    }
+    if (best >= 0.0) return {std::nullopt, best};
+    const geometry::CheckFaces::Near near = check.Around(q.tip, q.axis, kCheckReachMm);
+    remembered_[next_remembered_] = {q, near.clearance_mm};
+    next_remembered_ = (next_remembered_ + 1) % kRemembered;
+    return {near.hit, near.clearance_mm};
+  }
+
+  // Where a checked face first goes into the tool deeper than the check's tolerance on its way
+  // from pose a to pose b, both clear of them (`pose(x, &q)` places it x mm along the tip's path,
+  // `length` mm long): an x where it does, or nothing. No face lies nearer the tool than c_a at a
+  // and c_b at b, and no point of the tool moves more than D between them (the tip's path, and the
+  // axis's turn as CheckFaces::Displacement counts it, a quarter more for a turn that is not even):
+  // between them a face can come into it by at most (D - c_a - c_b) / 2. Where that may exceed
+  // the tolerance the middle is checked, then each half, down to kShortestBetweenMm.
+  template <typename PoseAt>
+  std::optional<double> FirstInto(const PoseAt& pose, const Placed& a, const Placed& b,
+                                  double length) const {
+    return FirstIntoFrom(pose, a, NeighboursAt(a).clearance_mm, 0.0, b,
+                         NeighboursAt(b).clearance_mm, length);
+  }
+
+  template <typename PoseAt>
+  std::optional<double> FirstIntoFrom(const PoseAt& pose, const Placed& a, double c_a, double x_a,
+                                      const Placed& b, double c_b, double x_b) const {
+    const geometry::CheckFaces& check = *spec_.check;
+    const double chord = (b.tip - a.tip).norm();
+    const double turn = check.Displacement(a.tip, a.axis, b.tip, b.axis) - chord;
+    const double moved = (x_b - x_a) + 1.25 * turn;
+    if (c_a + c_b + 2.0 * check.ToleranceMm() >= moved || x_b - x_a < kShortestBetweenMm) {
+      return std::nullopt;
+    }
+    const double x_m = 0.5 * (x_a + x_b);
+    Placed m;
+    if (!pose(x_m, &m)) return std::nullopt;
+    const Neighbours at_m = NeighboursAt(m);
+    if (at_m.hit) return x_m;
+    if (const auto x = FirstIntoFrom(pose, a, c_a, x_a, m, at_m.clearance_mm, x_m)) return x;
+    return FirstIntoFrom(pose, m, at_m.clearance_mm, x_m, b, c_b, x_b);
+  }
+
+  // FirstInto along a pass's trace from contact point `from`, h mm of the tip's path on to `to`.
+  std::optional<double> FirstIntoAlong(const PassEvaluator& e, const ContactPoint& from,
+                                       const ContactPoint& to, double h) const {
+    if (!spec_.check) return std::nullopt;
+    const auto pose = [&](double x, Placed* out) {
+      ContactPoint p;
+      EvalStatus st;
+      int its = 0;
+      if (!e.Step(from, x, spec_.newton, &p, &st, &its)) return false;
+      *out = {p.tip, p.axis};
+      return true;
+    };
+    return FirstInto(pose, {from.tip, from.axis}, {to.tip, to.axis}, h);
   }
 
   static constexpr const char* kOutsideBounds = "the tool tip leaves the strategy's bounds";
@@ -1918,7 +2045,7 @@ class Builder {
               : ": a flat bottom cannot follow a valley; use a ball end");
     }
     if (spec_.check) {
-      if (const auto hit = spec_.check->Into(p.tip, p.axis)) {
+      if (const auto hit = NeighboursAt({p.tip, p.axis}).hit) {
         return fmt::format(
             "the tool goes into {}: {:.3g} mm deep at ({:.6g}, {:.6g}, {:.6g}), (u, v) = ({:.9g}, "
             "{:.9g}) on that face",
@@ -2057,6 +2184,14 @@ class Builder {
   mutable std::optional<EvalStatus> refused_;
   // SeedGrid's values, for the feed along and against the strategy's direction.
   mutable std::vector<double> seed_grid_[2];
+  // The last poses checked against the checked faces, and their clearances (NeighboursAt).
+  static constexpr std::size_t kRemembered = 4;
+  struct Remembered {
+    Placed at{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ()};
+    double clearance_mm = -INFINITY;
+  };
+  mutable std::array<Remembered, kRemembered> remembered_{};
+  mutable std::size_t next_remembered_ = 0;
 };
 
 }  // namespace

@@ -18,7 +18,9 @@
 // of each block of 16 x 16) the distance is minimised on the exact face (descent in (u, v),
 // projected onto the face's UV box), and what is found inside is a hit. A descent stops at a
 // trimming loop, so a trimmed face's loops are sampled too, a sixteenth of the grid's spacing
-// apart.
+// apart. The faces' boxes, each face's blocks and its loops' blocks are held in hierarchies of
+// boxes (built once per job, a face's when it is sampled): a check visits only those within
+// reach of the tool.
 #pragma once
 
 #include <Eigen/Core>
@@ -62,12 +64,38 @@ class CheckFaces {
   // deeper than the tolerance. Thread-safe.
   std::optional<Hit> Into(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis) const;
 
+  // Into, and how far the tool is from the faces: no face lies nearer the tool than
+  // `clearance_mm` (at most `reach_mm`; the deepest depth found, negated, where one goes into it).
+  // The faces, their samples' blocks and a trimmed face's loops are looked at only where their
+  // bounding volumes (a hierarchy of boxes, built once per face) come within `reach_mm` of the
+  // tool: Around(tip, axis, 0) costs what Into does.
+  struct Near {
+    std::optional<Hit> hit;
+    double clearance_mm = 0.0;
+  };
+  Near Around(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, double reach_mm) const;
+
+  // The most any point of the tool that can come within a millimetre of a face moves from the
+  // pose (tip_a, axis_a) to (tip_b, axis_b) (mm): the tip's move, plus the turn of the axis (the
+  // chord between the unit axes) times the distance from the tip of the farthest such point (at
+  // a height where the axis is inside the faces' bounding box widened by the tool's radius and a
+  // millimetre, at either pose). A face `clearance_mm` (< 1 mm) from the tool at one pose is at
+  // least clearance_mm less this from it at the other.
+  double Displacement(const Eigen::Vector3d& tip_a, const Eigen::Vector3d& axis_a,
+                      const Eigen::Vector3d& tip_b, const Eigen::Vector3d& axis_b) const;
+
+  double ToleranceMm() const { return tolerance_mm_; }
+
  private:
   struct Sampled;
   struct Face;
   const Sampled& Samples(const Face& face) const;
+  void BuildTree();
 
+  struct Tree;
   std::vector<std::shared_ptr<const Face>> faces_;
+  std::shared_ptr<const Tree> tree_;  // the faces' boxes, built once per list of faces
+  Eigen::Vector3d lo_, hi_;           // the box of all faces
   Tool tool_;
   double length_mm_, tolerance_mm_;
   double spacing_mm_;  // the samples' spacing asked for
