@@ -96,26 +96,10 @@ Pocket MakePocket() {
   return p;
 }
 
-// `faces` as a STEP file `name`.stp, each ADVANCED_FACE named.
+// `faces` written as a STEP file named `name`.stp in the scratch folder, each face named as given.
 std::string WriteNamed(const std::string& name,
                        const std::vector<std::pair<TopoDS_Face, std::string>>& faces) {
-  TopoDS_Compound all;
-  BRep_Builder builder;
-  builder.MakeCompound(all);
-  for (const auto& f : faces) builder.Add(all, f.first);
-  const std::string unnamed = test::Scratch(name + "_unnamed.stp");
-  test::WriteStep(all, unnamed);
-  std::ostringstream text;
-  text << std::ifstream(unnamed).rdbuf();
-  std::string step = text.str();
-  for (const auto& f : faces) {
-    const std::size_t at = step.find("ADVANCED_FACE('',");
-    EXPECT_NE(at, std::string::npos);
-    step.replace(at, 16, fmt::format("ADVANCED_FACE('{}'", f.second));
-  }
-  const std::string path = test::Scratch(name + ".stp");
-  std::ofstream(path) << step;
-  return path;
+  return test::WriteNamedFaces(faces, test::Scratch(name + ".stp"));
 }
 
 // How deep `face` lies in a ball end of radius r (unlimited length) with tip `tip` and axis

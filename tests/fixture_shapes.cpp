@@ -1,14 +1,18 @@
 #include "fixture_shapes.hpp"
 
 #include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRep_Builder.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <TColStd_Array1OfInteger.hxx>
 #include <TColStd_Array1OfReal.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
+#include <TopoDS_Compound.hxx>
 #include <cmath>
+#include <fstream>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 
 #include "parts.hpp"
@@ -48,6 +52,30 @@ TopoDS_Face WavyRuledFace() {
 
 void WriteStep(const TopoDS_Shape& shape, const std::string& path) {
   parts::WriteStep(shape, path);
+}
+
+std::string WriteNamedFaces(const std::vector<std::pair<TopoDS_Face, std::string>>& faces,
+                            const std::string& path) {
+  TopoDS_Compound all;
+  BRep_Builder builder;
+  builder.MakeCompound(all);
+  for (const auto& f : faces) builder.Add(all, f.first);
+  const std::string unnamed = path + ".unnamed.stp";
+  WriteStep(all, unnamed);
+  std::ostringstream text;
+  text << std::ifstream(unnamed).rdbuf();
+  std::string step = text.str();
+  for (const auto& f : faces) {
+    const std::size_t at = step.find("ADVANCED_FACE('',");
+    if (at == std::string::npos) {
+      throw std::runtime_error(unnamed + " has fewer unnamed faces than were written");
+    }
+    step.replace(at, 16, "ADVANCED_FACE('" + f.second + "'");
+  }
+  std::ofstream out(path);
+  out << step;
+  if (!out) throw std::runtime_error("cannot write " + path);
+  return path;
 }
 
 }  // namespace dtis::test

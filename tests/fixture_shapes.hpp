@@ -6,6 +6,8 @@
 #include <TopoDS_Face.hxx>
 #include <TopoDS_Shape.hxx>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace dtis::test {
 
@@ -18,5 +20,10 @@ TopoDS_Face WavyRuledFace();
 // Writes `shape` as a STEP file at `path`, quietly (OpenCASCADE's writer prints its statistics
 // through the messenger). Throws std::runtime_error if it cannot.
 void WriteStep(const TopoDS_Shape& shape, const std::string& path);
+
+// Writes `faces` as one STEP file at `path`, each ADVANCED_FACE named as given, as a CAD system
+// names them, and returns `path`. Throws std::runtime_error if it cannot.
+std::string WriteNamedFaces(const std::vector<std::pair<TopoDS_Face, std::string>>& faces,
+                            const std::string& path);
 
 }  // namespace dtis::test

@@ -1605,22 +1605,10 @@ class Builder {
       if (n.dot(a) < 1.0 - 1e-9 || CurvatureTowards(pole.inside, n) > 1e-9 || !(in.norm() > 0.0)) {
         return false;
       }
-      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
-      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
       ContactPoint exit;
       bool past_it = false;
       for (double past = kPast; past <= tool_.radius && !past_it; past *= 2.0) {
-        const Eigen::Vector3d target = pole.at.p + in.normalized() * past;
-        Eigen::Vector2d q = pole.uv, uv = pole.uv;
-        q[pole.fixed] += pole.inward * past / pole.across_mm;
-        geometry::SurfaceDerivatives dq;
-        double best = INFINITY;
-        constexpr int kScan = 720;
-        for (int k = 0; k <= kScan; ++k) {
-          q[m] = m0 + (m1 - m0) * k / kScan;
-          face_.D2(q.x(), q.y(), &dq);
-          if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), uv = q;
-        }
+        Eigen::Vector2d uv = NearestLeavingPole(pole, past, pole.at.p + in.normalized() * past);
         for (int it = 0; it < 20; ++it) {
           if (!face_.InBox(uv.x(), uv.y()) || !Evaluates(e, uv, &exit, cur.guide_t)) break;
           if (std::abs(exit.g) <= spec_.newton.tolerance_mm) {
@@ -1763,19 +1751,7 @@ class Builder {
     if (at_pole) {
       // (u, v) is degenerate at a pole: of the parameter lines leaving it (720 of them), the
       // point kPast from the pole that is nearest the pole moved kPast away, as AcrossPole does.
-      const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
-      const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
-      const Eigen::Vector3d target = d.p + away * kPast;
-      Eigen::Vector2d q = uv;
-      q[pole.fixed] += pole.inward * kPast / pole.across_mm;
-      geometry::SurfaceDerivatives dq;
-      double best = INFINITY;
-      constexpr int kScan = 720;
-      for (int k = 0; k <= kScan; ++k) {
-        q[m] = m0 + (m1 - m0) * k / kScan;
-        face_.D2(q.x(), q.y(), &dq);
-        if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), guess = q;
-      }
+      guess = NearestLeavingPole(pole, kPast, d.p + away * kPast);
     } else {
       Eigen::Matrix<double, 3, 2> dp;
       dp << d.su, d.sv;
@@ -1810,6 +1786,25 @@ class Builder {
     geometry::SurfaceDerivatives at;  // at uv
     geometry::SurfaceDerivatives inside;  // 1e-6 of the box inside, where the normal is defined
   };
+
+  // Of the 720 parameter lines leaving `pole`, the point `past` mm from it (across the edge) that
+  // is nearest `target`, as (u, v): (u, v) is degenerate at a pole, and this starts a solve there.
+  Eigen::Vector2d NearestLeavingPole(const Pole& pole, double past,
+                                     const Eigen::Vector3d& target) const {
+    const int m = 1 - pole.fixed;  // the parameter that runs along the collapsed edge
+    const double m0 = m == 0 ? face_.U0() : face_.V0(), m1 = m == 0 ? face_.U1() : face_.V1();
+    Eigen::Vector2d q = pole.uv, nearest = pole.uv;
+    q[pole.fixed] += pole.inward * past / pole.across_mm;
+    geometry::SurfaceDerivatives dq;
+    double best = INFINITY;
+    constexpr int kScan = 720;
+    for (int k = 0; k <= kScan; ++k) {
+      q[m] = m0 + (m1 - m0) * k / kScan;
+      face_.D2(q.x(), q.y(), &dq);
+      if ((dq.p - target).norm() < best) best = (dq.p - target).norm(), nearest = q;
+    }
+    return nearest;
+  }
 
   // The pole whose point is within `near` mm of contact point c, if any.
   bool PoleNear(const ContactPoint& c, double near, Pole* pole) const {
