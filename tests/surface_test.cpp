@@ -2248,6 +2248,23 @@ double ContactPathLength(const strategies::SurfacePass& pass, double step) {
 // lines along x. Every strategy's lines run along y, in planes x = const (leading_line: offsets
 // from a guide along x = 40), so each line's contact points follow the wave's section, the same
 // curve for every line.
+// What each line of `passes` (keyed by `key` of a contact point on it) finishes and leaves out
+// (every stretch left out an undercut), mm.
+template <typename Key>
+std::map<long, double> LineCoverage(const strategies::PassList& passes, const Key& key) {
+  std::map<long, double> covered;
+  for (const auto& pass : passes.passes) {
+    strategies::ContactPoint c;
+    EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
+    covered[key(c.p)] += ContactPathLength(*pass, 0.05);
+  }
+  for (const auto& u : passes.unreachable) {
+    EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
+    covered[key(u.from)] += u.length_mm;
+  }
+  return covered;
+}
+
 TEST(SurfacePass, AFlatBottomCrossesALevelCrestOnEveryStrategy) {
   const Handle(Geom_BSplineSurface) wave = parts::CubicWaveSurface(0.0);
   const TopoDS_Face face = BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(wave), 1e-7).Face();
@@ -2333,19 +2350,8 @@ TEST(SurfacePass, ASphereIsFinishedThroughItsPolesAndRoundItsClosedSections) {
   const FaceSurface surface(face, "sphere");
   const auto xyz =
       kinematics::LoadMachineFile(test::Source("samples/machines/mikron_ucp710_xyz.toml"));
-  // What each line (keyed by `key` of a contact point on it) finishes and leaves out, mm.
-  const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
-    std::map<long, double> covered;
-    for (const auto& pass : passes.passes) {
-      strategies::ContactPoint c;
-      EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
-      covered[key(c.p)] += ContactPathLength(*pass, 0.05);
-    }
-    for (const auto& u : passes.unreachable) {
-      EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
-      covered[key(u.from)] += u.length_mm;
-    }
-    return covered;
+  const auto coverage = [](const strategies::PassList& passes, const auto& key) {
+    return LineCoverage(passes, key);
   };
   for (const Eigen::Vector3d normal : {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()}) {
     // Through the pole (x = 0, a great circle through both), beside it (x = +-0.25), the whole
@@ -2452,19 +2458,8 @@ TEST(SurfacePass, AFlatBottomIsCarriedOverASpheresPole) {
         if (std::abs(pose.tip.z() - 10.0) < 1e-9) ++*over;
       }
     };
-    // What each line finishes and leaves out, keyed by `key` of a contact point on it, mm.
-    const auto coverage = [&](const strategies::PassList& passes, const auto& key) {
-      std::map<long, double> covered;
-      for (const auto& pass : passes.passes) {
-        strategies::ContactPoint c;
-        EXPECT_EQ(pass->Evaluate(pass->Start(), &c), strategies::EvalStatus::kOk);
-        covered[key(c.p)] += ContactPathLength(*pass, 0.05);
-      }
-      for (const auto& u : passes.unreachable) {
-        EXPECT_NE(u.why.find("undercut"), std::string::npos) << u.why;
-        covered[key(u.from)] += u.length_mm;
-      }
-      return covered;
+    const auto coverage = [](const strategies::PassList& passes, const auto& key) {
+      return LineCoverage(passes, key);
     };
     {
       SCOPED_TRACE(tool.Describe() + " plane_cl");
