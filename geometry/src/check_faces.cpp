@@ -169,18 +169,16 @@ struct CheckFaces::Sampled {
   double cover = 0.0;  // every point of the face lies within this of a sample (mm)
   struct Block {
     int i0, i1, j0, j1;  // samples [i0, i1) x [j0, j1)
-    Vector3d centre;
-    double half_diagonal;
   };
   std::vector<Block> blocks;
-  BoxTree block_tree;  // the blocks' boxes
+  BoxTree block_tree;  // the blocks' boxes (item k: blocks[k])
   // A trimmed face's loops, sampled a sixteenth of the grid's spacing apart: the descent stops at
   // a loop, so the deepest point on one (the rim of a hole) is found among these. Blocks of 64
   // consecutive points ([i0, i1)).
   std::vector<Vector3d> rim;
   std::vector<Vector2d> rim_uv;
   std::vector<Block> rim_blocks;
-  BoxTree rim_tree;
+  BoxTree rim_tree;  // item k: rim_blocks[k]
 };
 
 struct CheckFaces::Tree {
@@ -323,12 +321,8 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
     std::vector<Box> block_boxes;
     for (int i0 = 0; i0 < out->nu; i0 += kBlock) {
       for (int j0 = 0; j0 < out->nv; j0 += kBlock) {
-        Sampled::Block b{i0,
-                         std::min(out->nu, i0 + kBlock + 1),
-                         j0,
-                         std::min(out->nv, j0 + kBlock + 1),
-                         Vector3d::Zero(),
-                         0.0};
+        const Sampled::Block b{i0, std::min(out->nu, i0 + kBlock + 1), j0,
+                               std::min(out->nv, j0 + kBlock + 1)};
         Box box;
         bool any = false;
         for (int i = b.i0; i < b.i1; ++i) {
@@ -339,8 +333,6 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
           }
         }
         if (!any) continue;
-        b.centre = box.Centre();
-        b.half_diagonal = box.HalfDiagonal();
         out->blocks.push_back(b);
         block_boxes.push_back(box);
       }
@@ -371,8 +363,7 @@ const CheckFaces::Sampled& CheckFaces::Samples(const Face& face) const {
         const std::size_t i1 = std::min(out->rim.size(), i0 + 64);
         Box box;
         for (std::size_t i = i0; i < i1; ++i) box.Add(out->rim[i]);
-        out->rim_blocks.push_back(
-            {static_cast<int>(i0), static_cast<int>(i1), 0, 0, box.Centre(), box.HalfDiagonal()});
+        out->rim_blocks.push_back({static_cast<int>(i0), static_cast<int>(i1), 0, 0});
         rim_boxes.push_back(box);
       }
       out->rim_tree = BoxTree(rim_boxes);
@@ -408,8 +399,8 @@ CheckFaces::Near CheckFaces::Around(const Vector3d& tip, const Vector3d& axis,
       [&](const Vector3d& centre, double half) { return distance(centre) <= half + reach_mm; },
       [&](int k) { near_faces.push_back(k); });
   std::sort(near_faces.begin(), near_faces.end());  // (in the list's order, as before)
-  for (const int k : near_faces) {
-    const Face& face = *faces_[static_cast<std::size_t>(k)];
+  for (const int near_face : near_faces) {
+    const Face& face = *faces_[static_cast<std::size_t>(near_face)];
     const Sampled& s = Samples(face);
     struct Seed {
       double d;
