@@ -1724,8 +1724,9 @@ class Builder {
     // A top at a pole of the parametrization (a sphere's pole on top): S_u x S_v vanishes there,
     // so the Newton finds no normal; the pole is the top if the normal next to it is the axis.
     Pole pole;
-    const bool at_pole = !(found && (d.p - cur.p).norm() <= 1e-2) && PoleNear(cur, 1e-2, &pole);
-    if (!at_pole && (!found || (d.p - cur.p).norm() > 1e-2)) return false;
+    const bool top_here = found && (d.p - cur.p).norm() <= 1e-2;
+    const bool at_pole = !top_here && PoleNear(cur, 1e-2, &pole);
+    if (!top_here && !at_pole) return false;
     if (at_pole) uv = pole.uv, d = pole.at;
     const geometry::SurfaceDerivatives& bend = at_pole ? pole.inside : d;
     const Eigen::Vector3d n = bend.su.cross(bend.sv).normalized() * static_cast<double>(side_);
@@ -1912,8 +1913,10 @@ class Builder {
         out->axis = geometry::StraightMoveAxis(a.tip, b.tip, a.axis, b.axis, t);
         return true;
       };
-      if (NeighboursAt({a.tip, a.axis}).hit || NeighboursAt({b.tip, b.axis}).hit ||
-          FirstInto(pose, {a.tip, a.axis}, {b.tip, b.axis}, chord)) {
+      const Placed from{a.tip, a.axis}, to{b.tip, b.axis};
+      const Neighbours at_a = NeighboursAt(from), at_b = NeighboursAt(to);
+      if (at_a.hit || at_b.hit ||
+          FirstIntoFrom(pose, from, at_a.clearance_mm, 0.0, to, at_b.clearance_mm, chord)) {
         return false;
       }
     }
