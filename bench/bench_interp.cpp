@@ -118,14 +118,10 @@ struct SurfaceCounts {
   }
 };
 
-// A whole surface job (STEP read, passes built and traced, passes and links planned), with 1 or 2
-// threads.
-//   build/bench/dtis_bench --benchmark_filter=Surface/
-void Surface(benchmark::State& state, const char* job_file) {
-  const auto job = dtis::io::LoadJob(
-      job_file[0] == '/' ? std::string(job_file) : std::string(DTIS_SOURCE_DIR) + "/" + job_file);
+// Times `job` run whole on `threads` threads, with its counts.
+void RunSurfaceJob(benchmark::State& state, const dtis::io::Job& job, int threads) {
   dtis::io::RunOptions options;
-  options.threads = static_cast<int>(state.range(0));
+  options.threads = threads;
   SurfaceCounts counts;
   for (auto _ : state) {
     const auto r = dtis::io::RunJob(job, options);
@@ -133,6 +129,14 @@ void Surface(benchmark::State& state, const char* job_file) {
     benchmark::DoNotOptimize(r);
   }
   counts.Report(state);
+}
+
+// A whole surface job (STEP read, passes built and traced, passes and links planned), with 1 or 2
+// threads.
+//   build/bench/dtis_bench --benchmark_filter=Surface/
+void Surface(benchmark::State& state, const char* job_file) {
+  RunSurfaceJob(state, dtis::io::LoadJob(std::string(DTIS_SOURCE_DIR) + "/" + job_file),
+                static_cast<int>(state.range(0)));
 }
 
 // The same jobs' planning alone, the surface set up once outside the timed loop (STEP read, face
@@ -212,15 +216,7 @@ void SurfaceHolesAmongOthers(benchmark::State& state) {
   static const std::string file = dtis::bench::WriteFaceWithHolesAmongOthersJob();
   auto job = dtis::io::LoadJob(file);
   if (state.range(0) == 0) job.surface->check_faces.emplace();
-  dtis::io::RunOptions options;
-  options.threads = 1;
-  SurfaceCounts counts;
-  for (auto _ : state) {
-    const auto r = dtis::io::RunJob(job, options);
-    counts.Add(r.vpop, r.verify.motion_time_s);
-    benchmark::DoNotOptimize(r);
-  }
-  counts.Report(state);
+  RunSurfaceJob(state, job, 1);
 }
 BENCHMARK(SurfaceHolesAmongOthers)
     ->ArgName("checks")

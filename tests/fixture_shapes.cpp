@@ -65,12 +65,14 @@ std::string WriteNamedFaces(const std::vector<std::pair<TopoDS_Face, std::string
   std::ostringstream text;
   text << std::ifstream(unnamed).rdbuf();
   std::string step = text.str();
+  std::size_t at = 0;
   for (const auto& f : faces) {
-    const std::size_t at = step.find("ADVANCED_FACE('',");
+    at = step.find("ADVANCED_FACE('',", at);
     if (at == std::string::npos) {
       throw std::runtime_error(unnamed + " has fewer unnamed faces than were written");
     }
-    step.replace(at, 16, "ADVANCED_FACE('" + f.second + "'");
+    if (!f.second.empty()) step.replace(at, 16, "ADVANCED_FACE('" + f.second + "'");
+    ++at;
   }
   std::ofstream out(path);
   out << step;

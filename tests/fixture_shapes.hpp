@@ -21,8 +21,8 @@ TopoDS_Face WavyRuledFace();
 // through the messenger). Throws std::runtime_error if it cannot.
 void WriteStep(const TopoDS_Shape& shape, const std::string& path);
 
-// Writes `faces` as one STEP file at `path`, each ADVANCED_FACE named as given, as a CAD system
-// names them, and returns `path`. Throws std::runtime_error if it cannot.
+// Writes `faces` as one STEP file at `path`, each ADVANCED_FACE named as given (as a CAD system
+// names them; "" leaves a face unnamed), and returns `path`. Throws std::runtime_error if it cannot.
 std::string WriteNamedFaces(const std::vector<std::pair<TopoDS_Face, std::string>>& faces,
                             const std::string& path);
 
