@@ -10,7 +10,6 @@
 #include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
-#include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
@@ -20,12 +19,9 @@
 #include <Geom_BSplineSurface.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
-#include <TopoDS_Compound.hxx>
 #include <cmath>
-#include <fstream>
 #include <numbers>
 #include <random>
-#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -96,12 +92,6 @@ Pocket MakePocket() {
   return p;
 }
 
-// `faces` written as a STEP file named `name`.stp in the scratch folder, each face named as given.
-std::string WriteNamed(const std::string& name,
-                       const std::vector<std::pair<TopoDS_Face, std::string>>& faces) {
-  return test::WriteNamedFaces(faces, test::Scratch(name + ".stp"));
-}
-
 // How deep `face` lies in a ball end of radius r (unlimited length) with tip `tip` and axis
 // `axis`: r less OpenCASCADE's distance between the face and the ball centres' segment, 100 mm up
 // the axis from the centre (the tool is that segment widened by r).
@@ -116,26 +106,47 @@ double DepthIn(const TopoDS_Face& face, double r, const Eigen::Vector3d& tip,
   return r - d.Value();
 }
 
-struct Deepest {
+using Walls = std::vector<std::pair<TopoDS_Face, std::string>>;
+
+// The deepest any of `walls` goes into a ball end of radius r with tip `tip` and a vertical axis
+// (these jobs are 3-axis), into `deepest` with `where` and the wall's name when deeper than it;
+// walls whose box is farther than r + 0.1 mm from the ball centres' segment are skipped.
+class DeepestWall {
+ public:
+  DeepestWall(const Walls& walls, double r) : walls_(walls), r_(r) {
+    for (const auto& w : walls) {
+      Bnd_Box b;
+      BRepBndLib::AddOptimal(w.first, b, false, false);
+      b.Enlarge(r + 0.1);
+      boxes_.push_back(b);
+    }
+  }
+  void At(const Eigen::Vector3d& tip, const std::string& place) {
+    const Eigen::Vector3d c = tip + r_ * Eigen::Vector3d::UnitZ();
+    Bnd_Box column;
+    column.Add(gp_Pnt(c.x(), c.y(), c.z()));
+    column.Add(gp_Pnt(c.x(), c.y(), c.z() + 100.0));
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      if (boxes_[w].IsOut(column)) continue;
+      const double d = DepthIn(walls_[w].first, r_, tip, Eigen::Vector3d::UnitZ());
+      if (d > depth) depth = d, where = place + ", " + walls_[w].second;
+    }
+  }
   double depth = -INFINITY;
   std::string where;
+
+ private:
+  const Walls& walls_;
+  double r_;
+  std::vector<Bnd_Box> boxes_;
 };
 
 // The deepest any of `walls` goes into the ball of radius r along every pass of `setup`, at the
 // middle of every `step` mm of arc length (points the trace, stepping 0.1 mm from the pass's
-// start, did not check); walls whose box is farther than r + 0.1 mm from the ball's centre's
-// segment are skipped.
-Deepest DeepestAlongPasses(const io::SurfaceSetup& setup, double r,
-                           const std::vector<std::pair<TopoDS_Face, std::string>>& walls,
-                           double step) {
-  std::vector<Bnd_Box> boxes;
-  for (const auto& w : walls) {
-    Bnd_Box b;
-    BRepBndLib::AddOptimal(w.first, b, false, false);
-    b.Enlarge(r + 0.1);
-    boxes.push_back(b);
-  }
-  Deepest deepest;
+// start, did not check).
+DeepestWall DeepestAlongPasses(const io::SurfaceSetup& setup, double r, const Walls& walls,
+                               double step) {
+  DeepestWall deepest(walls, r);
   for (std::size_t k = 0; k < setup.passes.passes.size(); ++k) {
     const auto& pass = *setup.passes.passes[k];
     const double length = *pass.Length();
@@ -144,21 +155,9 @@ Deepest DeepestAlongPasses(const io::SurfaceSetup& setup, double r,
       const PathSample smp = pass.At(state, s);
       if (smp.status != PathStatus::kOk) continue;
       state = smp.state;
-      const Eigen::Vector3d c = smp.pose.tip + r * smp.pose.axis;
-      for (std::size_t w = 0; w < walls.size(); ++w) {
-        // (The segment is vertical for these 3-axis jobs: the box test on its foot and XY.)
-        const gp_Pnt foot(c.x(), c.y(), c.z());
-        Bnd_Box column;
-        column.Add(foot);
-        column.Add(gp_Pnt(c.x(), c.y(), c.z() + 100.0));
-        if (boxes[w].IsOut(column)) continue;
-        const double d = DepthIn(walls[w].first, r, smp.pose.tip, smp.pose.axis);
-        if (d > deepest.depth) {
-          deepest = {d, fmt::format("pass {}, s = {:.4f} mm, tip ({:.5f}, {:.5f}, {:.5f}), {}",
-                                    k + 1, s, smp.pose.tip.x(), smp.pose.tip.y(), smp.pose.tip.z(),
-                                    walls[w].second)};
-        }
-      }
+      const Eigen::Vector3d& tip = smp.pose.tip;
+      deepest.At(tip, fmt::format("pass {}, s = {:.4f} mm, tip ({:.5f}, {:.5f}, {:.5f})", k + 1, s,
+                                  tip.x(), tip.y(), tip.z()));
     }
   }
   return deepest;
@@ -169,10 +168,9 @@ Deepest DeepestAlongPasses(const io::SurfaceSetup& setup, double r,
 // tolerance between the points the trace checked, by OpenCASCADE's distance.
 TEST(CheckFaces, NoNeighbourGoesIntoTheToolBetweenTheCheckedPoints) {
   const Pocket p = MakePocket();
-  const std::vector<std::pair<TopoDS_Face, std::string>> walls = {
-      {p.left, "left"}, {p.right, "right"}, {p.back, "back"}};
-  const std::string step =
-      WriteNamed("spline_pocket", {{p.floor, "floor"}, walls[0], walls[1], walls[2]});
+  const Walls walls = {{p.left, "left"}, {p.right, "right"}, {p.back, "back"}};
+  const std::string step = test::WriteNamedFaces({{p.floor, "floor"}, walls[0], walls[1], walls[2]},
+                                                 test::Scratch("spline_pocket.stp"));
   for (const char* planes :
        {"plane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\nstepover_mm = 1.3",
         "plane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\nstepover_mm = 1.7"}) {
@@ -183,7 +181,7 @@ TEST(CheckFaces, NoNeighbourGoesIntoTheToolBetweenTheCheckedPoints) {
     const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
     ASSERT_GE(setup.passes.passes.size(), 20u);
     EXPECT_FALSE(setup.passes.unreachable.empty());
-    const Deepest d = DeepestAlongPasses(setup, 1.0, walls, 0.05);
+    const DeepestWall d = DeepestAlongPasses(setup, 1.0, walls, 0.05);
     EXPECT_LE(d.depth, job.surface->check_tolerance_mm) << d.where;
     EXPECT_GT(d.depth, -0.01) << d.where;  // the passes come to the walls
     // And as planned, along the side walls: the middle of every other period of the job (passes,
@@ -193,37 +191,14 @@ TEST(CheckFaces, NoNeighbourGoesIntoTheToolBetweenTheCheckedPoints) {
     const io::RunResult r = io::RunJob(job);
     ASSERT_TRUE(r.verify.Passed());
     const auto& c = r.table.columns;
-    std::vector<Bnd_Box> boxes;
-    for (const auto& w : walls) {
-      Bnd_Box b;
-      BRepBndLib::AddOptimal(w.first, b, false, false);
-      b.Enlarge(1e-3);
-      boxes.push_back(b);
-    }
-    double deepest = -INFINITY;
-    std::string where;
+    DeepestWall planned(walls, 1.0);
     for (std::size_t k = 0; k + 1 < c[0].size(); k += 2) {
-      for (const double t : {0.5}) {
-        const Eigen::Vector3d tip((1 - t) * c[0][k] + t * c[0][k + 1],
-                                  (1 - t) * c[1][k] + t * c[1][k + 1],
-                                  (1 - t) * c[2][k] + t * c[2][k + 1]);
-        for (std::size_t w = 0; w < walls.size(); ++w) {
-          // (The tool lies within its radius of its axis from the ball's centre up.)
-          Bnd_Box column;
-          column.Add(gp_Pnt(tip.x(), tip.y(), tip.z() + 1.0));
-          column.Add(gp_Pnt(tip.x(), tip.y(), tip.z() + 101.0));
-          column.Enlarge(1.0);
-          if (boxes[w].IsOut(column)) continue;
-          const double depth = DepthIn(walls[w].first, 1.0, tip, Eigen::Vector3d::UnitZ());
-          if (depth > deepest) {
-            deepest = depth;
-            where = fmt::format("setpoint {} + {}, tip ({:.5f}, {:.5f}, {:.5f}), {}", k, t, tip.x(),
-                                tip.y(), tip.z(), walls[w].second);
-          }
-        }
-      }
+      const Eigen::Vector3d tip(0.5 * (c[0][k] + c[0][k + 1]), 0.5 * (c[1][k] + c[1][k + 1]),
+                                0.5 * (c[2][k] + c[2][k + 1]));
+      planned.At(tip, fmt::format("setpoint {} + 0.5, tip ({:.5f}, {:.5f}, {:.5f})", k, tip.x(),
+                                  tip.y(), tip.z()));
     }
-    EXPECT_LE(deepest, job.surface->check_tolerance_mm) << where;
+    EXPECT_LE(planned.depth, job.surface->check_tolerance_mm) << planned.where;
   }
 }
 
