@@ -140,7 +140,8 @@ std::string RenderJobReport(const dtis::io::Job& job, dtis::io::ReportInput in,
   return dtis::io::RenderReport(in, plotly);
 }
 
-// --planner: "vpop" or "lookahead" overrides the job's [interpolator] planner ("" keeps it).
+// --planner: "vpop", "lookahead" or "least-time" overrides the job's [interpolator] planner (""
+// keeps it).
 void ApplyPlanner(const std::string& planner, dtis::io::Job* job) {
   if (planner.empty()) return;
   if (job->interpolator != dtis::io::InterpolatorKind::kVpop) {
@@ -185,8 +186,9 @@ const CLI::Validator kPositive = NumberCheck(false);
 const CLI::Validator kNonNegative = NumberCheck(true);
 
 const char* const kPlannerHelp =
-    "lookahead (the exact step capped by the viable feeds ahead; the default) or vpop (the "
-    "paper's back-off); overrides the job's [interpolator] planner";
+    "lookahead (the exact step capped by the viable feeds ahead; the default), vpop (the "
+    "paper's back-off) or least-time (the look-ahead's plan shortened on the discrete problem; "
+    "plans whole, does not stream); overrides the job's [interpolator] planner";
 
 // "X,Y,Z[,A,C]" in machine units (mm, deg), as many values as the machine has axes.
 dtis::AxisVector ParseAxisPositions(const std::string& text, const dtis::Machine& machine) {
@@ -785,7 +787,7 @@ int main(int argc, char** argv) {
                   "--horizon` with the same value sends")
       ->check(CLI::Range(8L, 1L << 30));
   run->add_option("--planner", ra_run.planner, kPlannerHelp)
-      ->check(CLI::IsMember({"vpop", "lookahead"}));
+      ->check(CLI::IsMember({"vpop", "lookahead", "least-time"}));
   run->add_option("-j,--threads", ra_run.threads,
                   "threads for a surface job's passes (0: all cores); the output is the same")
       ->check(kNonNegative);
@@ -811,9 +813,9 @@ int main(int argc, char** argv) {
                       "against time, and the exact-surface run in full");
   compare
       ->add_option("--planner", ca.planner,
-                   "both (every variant planned by each planner, the job's first), vpop or "
-                   "lookahead")
-      ->check(CLI::IsMember({"both", "vpop", "lookahead"}))
+                   "both (every variant planned by each planner, the job's first), vpop, "
+                   "lookahead or least-time")
+      ->check(CLI::IsMember({"both", "vpop", "lookahead", "least-time"}))
       ->capture_default_str();
   compare->add_flag("-q,--quiet", ca.quiet, "no progress line");
   compare->add_option("-j,--threads", ca.threads, "threads (0: all cores)")->check(kNonNegative);

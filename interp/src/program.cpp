@@ -170,6 +170,9 @@ ProgramResult Stitch(const std::vector<ProgramSegment>& segments,
     t.profile_repairs += p.summary.profile_repairs;
     t.stop_proofs += p.summary.stop_proofs;
     t.blind_proofs += p.summary.blind_proofs;
+    t.least_time_windows += p.summary.least_time_windows;
+    t.least_time_programs += p.summary.least_time_programs;
+    t.least_time_saved += p.summary.least_time_saved;
     t.end_s += p.summary.end_s;
     for (std::size_t l = 0; l < t.limited_by.size(); ++l)
       t.limited_by[l] += p.summary.limited_by[l];

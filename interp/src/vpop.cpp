@@ -46,6 +46,8 @@ const char* LimiterName(Limiter limiter) {
       return "rest";
     case Limiter::kProfileLookAhead:
       return "profile_look_ahead";
+    case Limiter::kLeastTimeWindow:
+      return "least_time_window";
     case Limiter::kCount:
       break;
   }
@@ -61,11 +63,20 @@ std::optional<Limiter> LimiterFromName(std::string_view name) {
 }
 
 const char* PlannerName(PlannerKind planner) {
-  return planner == PlannerKind::kLookAhead ? "lookahead" : "vpop";
+  switch (planner) {
+    case PlannerKind::kVpop:
+      return "vpop";
+    case PlannerKind::kLookAhead:
+      return "lookahead";
+    case PlannerKind::kLeastTime:
+      return "least-time";
+  }
+  return "?";
 }
 
 std::optional<PlannerKind> PlannerFromName(std::string_view name) {
-  for (const PlannerKind planner : {PlannerKind::kVpop, PlannerKind::kLookAhead}) {
+  for (const PlannerKind planner :
+       {PlannerKind::kVpop, PlannerKind::kLookAhead, PlannerKind::kLeastTime}) {
     if (name == PlannerName(planner)) return planner;
   }
   return std::nullopt;
@@ -1542,8 +1553,92 @@ VpopSummary Planner::Run() {
 
 }  // namespace
 
+namespace {
+
+// Keeps every setpoint (the look-ahead's plan, before the least-time planner shortens it).
+class PlanSink : public SetpointSink {
+ public:
+  void Accept(const Setpoint& setpoint) override { rows.push_back(setpoint); }
+  std::vector<Setpoint> rows;
+};
+
+VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
+                          const VpopOptions& options, SetpointSink& sink) {
+  if (sink.WantsStops() || options.commit_horizon != std::numeric_limits<std::size_t>::max()) {
+    throw Error(
+        "the least-time planner plans a path whole and cannot stream it; stream with the "
+        "'lookahead' or 'vpop' planner");
+  }
+  // The faster of the two planners' plans: the look-ahead's continuous model is cautious where
+  // the path turns within a few periods (a G1 corner smoothed within a hundredth of a millimetre),
+  // which `vpop`'s exact back-off is not, and the windows cannot always recover that.
+  VpopOptions o = options;
+  o.planner = PlannerKind::kLookAhead;
+  PlanSink whole;
+  VpopSummary summary = Planner(path, machine, o, whole).Run();
+  {
+    o.planner = PlannerKind::kVpop;
+    PlanSink paper;
+    const VpopSummary other = Planner(path, machine, o, paper).Run();
+    if (other.motion_time_s < summary.motion_time_s) {
+      whole = std::move(paper);
+      summary = other;
+    }
+  }
+
+  // The limits the exact step kept (Planner's constructor checked them).
+  LeastTimeLimits limits;
+  limits.period_s = options.period_s;
+  limits.feed = options.feed_mm_s;
+  limits.tangential_acceleration = options.tangential_acceleration_mm_s2;
+  limits.tangential_jerk = options.tangential_jerk_mm_s3;
+  const auto axes = machine.Axes();
+  const double dt = options.period_s;
+  for (std::size_t i = 0; i < axes.size(); ++i) {
+    const double guard = RoundingGuard(axes[i], options), f = options.limit_fraction;
+    limits.v[i] = f * axes[i].vmax - guard / dt;
+    limits.a[i] = f * axes[i].amax - 2.0 * guard / (dt * dt);
+    limits.j[i] = f * axes[i].jmax - 4.0 * guard / (dt * dt * dt);
+  }
+  std::vector<PlannedStep> plan;
+  plan.reserve(whole.rows.size());
+  for (const Setpoint& row : whole.rows) plan.push_back({row.s, row.state, row.q, false});
+  const LeastTimeStats stats = ShortenPlan(path, machine, limits, options.least_time, &plan);
+  summary.least_time_windows = stats.windows;
+  summary.least_time_programs = stats.linear_programs;
+  summary.least_time_saved = stats.periods_saved;
+  summary.evaluations += stats.evaluations;
+
+  // Hand the shortened plan over; a period the windows kept keeps its limiter.
+  long last_move = 0;
+  std::size_t kept = 0;  // the look-ahead's row the next kept period matches
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    const PlannedStep& p = plan[k];
+    LimiterId by{Limiter::kLeastTimeWindow, -1};
+    if (!p.refined) {
+      while (kept + 1 < whole.rows.size() && whole.rows[kept].s < p.s) ++kept;
+      by = whole.rows[kept].limiter;
+    }
+    sink.Accept(
+        {.index = static_cast<long>(k), .s = p.s, .q = p.q, .state = p.state, .limiter = by});
+    if (k > 0 && (p.s != plan[k - 1].s || p.q != plan[k - 1].q)) last_move = static_cast<long>(k);
+  }
+  summary.setpoints = static_cast<long>(plan.size());
+  summary.motion_time_s = static_cast<double>(last_move) * dt;
+  summary.limited_by = {};
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    if (plan[k].refined) ++summary.limited_by[static_cast<int>(Limiter::kLeastTimeWindow)];
+  }
+  return summary;
+}
+
+}  // namespace
+
 VpopSummary PlanVpop(const PathSource& path, const Machine& machine, const VpopOptions& options,
                      SetpointSink& sink) {
+  if (options.planner == PlannerKind::kLeastTime) {
+    return PlanLeastTime(path, machine, options, sink);
+  }
   Planner planner(path, machine, options, sink);
   return planner.Run();
 }

@@ -432,7 +432,7 @@ Job ReadJob(TomlTable& root) {
     job.interpolator = k == "vpop"      ? InterpolatorKind::kVpop
                        : k == "taylor1" ? InterpolatorKind::kTaylor1
                                         : InterpolatorKind::kTaylor2;
-    if (auto pl = in->OptionalChoice("planner", {"lookahead", "vpop"})) {
+    if (auto pl = in->OptionalChoice("planner", {"lookahead", "vpop", "least-time"})) {
       if (job.interpolator != InterpolatorKind::kVpop) {
         in->Fail("planner", "only used by kind = \"vpop\"");
       }
@@ -1253,10 +1253,15 @@ std::string FormatRunSummary(const Job& job, const RunResult& r) {
   const double rt = r.compute_s > 0 ? r.verify.motion_time_s / r.compute_s : 0.0;
   out += fmt::format("compute time     {:.6f} s ({:.3g}x real time)\n", r.compute_s, rt);
   if (job.interpolator == InterpolatorKind::kVpop) {
-    if (job.vpop.planner == interp::PlannerKind::kLookAhead) {
+    if (job.vpop.planner != interp::PlannerKind::kVpop) {
       out +=
           fmt::format("look-ahead       {} grid points, {} repairs, {} refusals\n",
                       r.vpop.profile_grid_points, r.vpop.profile_repairs, r.vpop.profile_refusals);
+    }
+    if (job.vpop.planner == interp::PlannerKind::kLeastTime) {
+      out += fmt::format("least time       {} windows, {} linear programs, {} periods saved\n",
+                         r.vpop.least_time_windows, r.vpop.least_time_programs,
+                         r.vpop.least_time_saved);
     }
     out += fmt::format("back-offs        {} ({} brake tests), {} evaluations\n", r.vpop.back_offs,
                        r.vpop.brake_tests, r.vpop.evaluations);

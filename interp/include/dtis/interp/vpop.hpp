@@ -27,6 +27,7 @@
 
 #include "dtis/core/machine.hpp"
 #include "dtis/core/path_source.hpp"
+#include "dtis/interp/least_time.hpp"
 #include "dtis/interp/viable_feeds.hpp"
 
 namespace dtis::interp {
@@ -40,9 +41,13 @@ enum class PlannerKind : std::uint8_t {
   // The exact step capped by a look-ahead of the viable feeds (viable_feeds.hpp); the paper's
   // back-off stays as the last resort. The default.
   kLookAhead,
+  // The look-ahead's plan, then shortened window by window on the verifier's own discrete
+  // problem (least_time.hpp): the least time where the continuous model is wrong (sharp tips,
+  // corners turned within a few periods). Plans a path whole; it does not stream.
+  kLeastTime,
 };
 const char* PlannerName(PlannerKind planner);
-// The planner PlannerName gives `name` ("vpop" or "lookahead"), if any.
+// The planner PlannerName gives `name` ("vpop", "lookahead" or "least-time"), if any.
 std::optional<PlannerKind> PlannerFromName(std::string_view name);
 
 // The longest motion one path may take, s (a day).
@@ -50,7 +55,8 @@ inline constexpr double kMaxMotionS = 24.0 * 3600.0;
 
 struct VpopOptions {
   PlannerKind planner = PlannerKind::kLookAhead;
-  LookAheadOptions look_ahead;  // planner = kLookAhead
+  LookAheadOptions look_ahead;  // planner = kLookAhead or kLeastTime
+  LeastTimeOptions least_time;  // planner = kLeastTime
   double period_s = 1e-3;       // dt: setpoints are exactly this far apart, s
   double feed_mm_s = 0.0;       // programmed feed F, the upper bound of (s_{j+1} - s_j) / dt, mm/s
   // Tangential acceleration and jerk bounds (Eq. 6 on s), mm/s^2 and mm/s^3; infinity: none.
@@ -121,6 +127,7 @@ enum class Limiter : std::uint8_t {
   kBackOff,  // a brake step chosen by the dichotomy
   kRest,
   kProfileLookAhead,  // the largest step whose state stays viable (planner = kLookAhead)
+  kLeastTimeWindow,   // a period of a window the least-time planner shortened
   kCount
 };
 const char* LimiterName(Limiter limiter);
@@ -178,6 +185,11 @@ struct VpopSummary {
   // only).
   long stop_proofs = 0;
   long blind_proofs = 0;
+  // planner = kLeastTime: windows of the look-ahead's plan tried, the linear programs solved for
+  // them, and the periods they took off the motion.
+  long least_time_windows = 0;
+  long least_time_programs = 0;
+  long least_time_saved = 0;
   std::array<long, static_cast<int>(Limiter::kCount)> limited_by{};  // steps per limiter kind
 };
 
