@@ -3,9 +3,10 @@
 
     python3 bench/machines.py --dtis build/cli/dtis --count 40 --seed 1
     python3 bench/machines.py --dtis build/cli/dtis --count 40 --keep /tmp/cases --markdown out.md
+    python3 bench/machines.py --dtis build/cli/dtis --count 20 --planner least-time --timeout 900
 
-Each case draws a 3-axis machine and a path and plans the job with both planners (`dtis run
---planner lookahead` and `--planner vpop`, one thread, 1 ms). The machine's per-axis limits range
+Each case draws a 3-axis machine and a path and plans the job with two planners (`dtis run
+--planner vpop` and `--planner lookahead`, or the one --planner names; one thread, 1 ms). The machine's per-axis limits range
 from LinuxCNC-like ones (acceleration-limited: velocity 50-500 mm/s, acceleration 500-10 000
 mm/s^2, jerk 1e5-1e8 mm/s^3, which its trajectory planner leaves unbounded) to jerk-limited ones
 (jerk 2 000-50 000 mm/s^3, the Mikron's range), half of the cases each. The path is either a
@@ -132,7 +133,10 @@ def main():
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds per planner run")
     ap.add_argument("--keep", help="write every case's files here")
     ap.add_argument("--markdown", help="also write the table as Markdown here")
+    ap.add_argument("--planner", default="lookahead", choices=["lookahead", "least-time"],
+                    help="the planner measured against vpop")
     args = ap.parse_args()
+    other = args.planner
     rng = random.Random(args.seed)
     folder = args.keep or tempfile.mkdtemp(prefix="dtis_machines_")
     os.makedirs(folder, exist_ok=True)
@@ -161,20 +165,21 @@ def main():
         with open(stem + ".toml", "w") as f:
             f.write(job)
         result = {"case": case, "machine": "LinuxCNC-like" if linuxcnc_like else "jerk-limited", "path": what, "feed": feed}
-        for planner in ("vpop", "lookahead"):
+        for planner in ("vpop", other):
             motion, compute, error = run(args.dtis, stem + ".toml", planner, args.timeout)
             result[planner] = (motion, compute, error)
         rows.append(result)
-        v, la = result["vpop"], result["lookahead"]
+        v, la = result["vpop"], result[other]
         ratio = la[0] / v[0] if v[0] and la[0] else None
         result["ratio"] = ratio
         print(
-            "case {:2d} {:13s} {:28s} F {:5.0f}: vpop {} lookahead {} ratio {}".format(
+            "case {:2d} {:13s} {:28s} F {:5.0f}: vpop {} {} {} ratio {}".format(
                 case,
                 result["machine"],
                 what,
                 feed,
                 "{:.3f} s".format(v[0]) if v[0] else v[2],
+                other,
                 "{:.3f} s".format(la[0]) if la[0] else la[2],
                 "{:.4f}".format(ratio) if ratio else "-",
             ),
@@ -188,12 +193,12 @@ def main():
         return "{:.3f}".format(motion), "{:.3g}x".format(motion / compute) if compute else "-"
 
     table = [
-        "| case | machine | path | F (mm/min) | vpop (s) | lookahead (s) | lookahead / vpop | real time (CPU), vpop | real time (CPU), lookahead |",
+        "| case | machine | path | F (mm/min) | vpop (s) | {0} (s) | {0} / vpop | real time (CPU), vpop | real time (CPU), {0} |".format(other),
         "|---:|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         vm, vr = fmt_run(r["vpop"])
-        lm, lr = fmt_run(r["lookahead"])
+        lm, lr = fmt_run(r[other])
         table.append(
             "| {} | {} | {} | {:.0f} | {} | {} | {} | {} | {} |".format(
                 r["case"], r["machine"], r["path"], r["feed"], vm, lm,
@@ -209,9 +214,9 @@ def main():
             if not rs:
                 continue
             lines.append(
-                "- {}: {} cases, look-ahead over 1 % slower in {}, over 0.5 % in {}, over 1 % faster in {}; "
+                "- {}: {} cases, {} over 1 % slower in {}, over 0.5 % in {}, over 1 % faster in {}; "
                 "median ratio {:.4f}, worst {:.4f}".format(
-                    label, len(rs), sum(x > 1.01 for x in rs), sum(x > 1.005 for x in rs),
+                    label, len(rs), other, sum(x > 1.01 for x in rs), sum(x > 1.005 for x in rs),
                     sum(x < 0.99 for x in rs), statistics.median(rs), max(rs),
                 )
             )
@@ -219,7 +224,7 @@ def main():
     failed = [r for r in rows if not r["ratio"]]
     if failed:
         lines.append("- not planned by both: " + ", ".join(
-            "case {} ({}: {}; {})".format(r["case"], r["machine"], r["vpop"][2] or "ok", r["lookahead"][2] or "ok")
+            "case {} ({}: {}; {})".format(r["case"], r["machine"], r["vpop"][2] or "ok", r[other][2] or "ok")
             for r in failed))
     text = "\n".join(table + lines) + "\n"
     print(text)

@@ -213,6 +213,10 @@ class Shortener {
     radius = std::max(0.25 * radius, 1e-6);
     std::vector<Slope> g(static_cast<std::size_t>(n));
     bool fresh = false;  // g holds the gradients at x
+    // The last LP's basis (its columns' and rows' status, each row by its key), to start the next
+    // from: the rows change little from one LP of an attempt to the next.
+    std::vector<unsigned char> basis;
+    std::vector<long> basis_keys;
     for (int lp = 0; lp < o_.max_lps; ++lp) {
       if (!fresh) {
         for (long k = 0; k < n; ++k)
@@ -223,9 +227,14 @@ class Shortener {
       // radius, the arc lengths in order and within the path.
       std::vector<int> row_index, column_index;
       std::vector<double> value, row_lo, row_hi;
+      std::vector<long> keys;  // increasing: (period, order, axis or kind, side)
       int rows = 0;
-      const auto add_row = [&](const double* coefficient, const long* period, int count,
-                               double t_coefficient, double lo, double hi) {
+      const auto key = [&](long k, int p, int slot, int side) {
+        return (((k - a) * 4 + p) * (kMaxAxes + 2) + slot) * 2 + side;
+      };
+      const auto add_row = [&](long row_key, const double* coefficient, const long* period,
+                               int count, double t_coefficient, double lo, double hi) {
+        keys.push_back(row_key);
         for (int c = 0; c < count; ++c) {
           if (coefficient[c] == 0.0) continue;
           row_index.push_back(rows);
@@ -257,14 +266,14 @@ class Shortener {
           if (count == 0) continue;
           if (p == 1) {
             // In order: s_k - s_{k-1} >= 0, exactly (linear in s).
-            add_row(ds_coefficient, period, count, 0.0, -ds, INFINITY);
+            add_row(key(k, p, 0, 0), ds_coefficient, period, count, 0.0, -ds, INFINITY);
           }
           if (std::isfinite(tangential_[p])) {
             const double w = tangential_[p];
             double c[4];
             for (int q = 0; q < count; ++q) c[q] = ds_coefficient[q] / w;
-            add_row(c, period, count, -1.0, -INFINITY, 1.0 - kRoom - ds / w);
-            add_row(c, period, count, 1.0, -1.0 + kRoom - ds / w, INFINITY);
+            add_row(key(k, p, 1, 0), c, period, count, -1.0, -INFINITY, 1.0 - kRoom - ds / w);
+            add_row(key(k, p, 1, 1), c, period, count, 1.0, -1.0 + kRoom - ds / w, INFINITY);
           }
           for (int i = 0; i < n_axes_; ++i) {
             const double w = width_[p][i];
@@ -277,8 +286,8 @@ class Shortener {
               reach += std::abs(c[q]) * std::min(radius, slope.reach);
             }
             if (std::abs(dq) / w + reach < kRowReach) continue;
-            add_row(c, period, count, -1.0, -INFINITY, 1.0 - kRoom - dq / w);
-            add_row(c, period, count, 1.0, -1.0 + kRoom - dq / w, INFINITY);
+            add_row(key(k, p, 2 + i, 0), c, period, count, -1.0, -INFINITY, 1.0 - kRoom - dq / w);
+            add_row(key(k, p, 2 + i, 1), c, period, count, 1.0, -1.0 + kRoom - dq / w, INFINITY);
           }
         }
       }
@@ -299,9 +308,27 @@ class Shortener {
       model.setLogLevel(0);
       model.loadProblem(matrix, col_lo.data(), col_hi.data(), objective.data(), row_lo.data(),
                         row_hi.data());
+      if (!basis.empty()) {
+        // The last basis for the columns and the rows both LPs hold; a new row's slack basic.
+        std::vector<unsigned char> status(static_cast<std::size_t>(n + 1) + keys.size(),
+                                          ClpSimplex::basic);
+        std::copy_n(basis.begin(), n + 1, status.begin());
+        std::size_t j = 0;
+        for (std::size_t r = 0; r < keys.size(); ++r) {
+          while (j < basis_keys.size() && basis_keys[j] < keys[r]) ++j;
+          if (j < basis_keys.size() && basis_keys[j] == keys[r]) {
+            status[static_cast<std::size_t>(n + 1) + r] =
+                basis[static_cast<std::size_t>(n + 1) + j];
+          }
+        }
+        model.copyinStatus(status.data());
+      }
       model.dual();
       ++stats_.linear_programs;
       if (model.status() != 0) return false;
+      const unsigned char* status = model.statusArray();
+      basis.assign(status, status + n + 1 + rows);
+      basis_keys = keys;
       const double* solution = model.primalColumnSolution();
       const double predicted = solution[n];
       if (predicted >= current - 1e-9) return false;  // the model sees no way down
