@@ -71,24 +71,35 @@ struct Pocket {
   TopoDS_Face floor, left, right, back;
 };
 
-// The floor and three walls 12 mm tall at its edges x = 0, x = 40 and y = 40, each leaning out of
-// the pocket by about 15 deg (none overhangs the floor) and waving along its length, its top 0.8
-// mm in and out over 20 mm (the left and right walls) or 13 mm (the back one).
-Pocket MakePocket() {
+// How the pocket's walls stand: each leans out of the pocket by `lean_mm` at its top (negative:
+// into it, over the floor) and waves along its length, its top `wave_mm` in and out with a
+// period of `side_period_mm` (the left and right walls) or `back_period_mm` (the back one), the
+// top interpolated through `points` points.
+struct WallShape {
+  double lean_mm = 3.5, wave_mm = 0.8, side_period_mm = 20.0, back_period_mm = 13.0;
+  int points = 41;
+};
+
+// The floor and three walls 12 mm tall at its edges x = 0, x = 40 and y = 40, shaped as `shape`
+// says: by default each leans out of the pocket by about 15 deg (none overhangs the floor), its
+// top 0.8 mm in and out over 20 mm (the left and right walls) or 13 mm (the back one).
+Pocket MakePocket(const WallShape& shape = {}) {
   const Handle(Geom_BSplineSurface) floor = Floor();
   double u0, u1, v0, v1;
   floor->Bounds(u0, u1, v0, v1);
   Pocket p;
   p.floor = BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(floor), 1e-7).Face();
-  const auto top = [](double x0, double lean, bool along_y, double period) {
-    return CurveThrough(41, [=](double t) {
-      const double w = 40.0 * t, out = lean + 0.8 * std::sin(2.0 * kPi * w / period);
+  // The top of the wall at x0 (or y0), `outward` the way out of the pocket (+1 or -1).
+  const auto top = [&](double x0, double outward, bool along_y, double period) {
+    return CurveThrough(shape.points, [=](double t) {
+      const double w = 40.0 * t,
+                   out = outward * shape.lean_mm + shape.wave_mm * std::sin(2.0 * kPi * w / period);
       return along_y ? gp_Pnt(x0 + out, w, 12.0) : gp_Pnt(w, x0 + out, 12.0);
     });
   };
-  p.left = Wall(floor->UIso(u0), top(0.0, -3.5, true, 20.0));
-  p.right = Wall(floor->UIso(u1), top(40.0, 3.5, true, 20.0));
-  p.back = Wall(floor->VIso(v1), top(40.0, 3.5, false, 13.0));
+  p.left = Wall(floor->UIso(u0), top(0.0, -1.0, true, shape.side_period_mm));
+  p.right = Wall(floor->UIso(u1), top(40.0, 1.0, true, shape.side_period_mm));
+  p.back = Wall(floor->VIso(v1), top(40.0, 1.0, false, shape.back_period_mm));
   return p;
 }
 
