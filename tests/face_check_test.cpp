@@ -12,14 +12,18 @@
 #include <BRepExtrema_DistShapeShape.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
+#include <GeomAPI_IntSS.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_PointsToBSplineSurface.hxx>
 #include <GeomFill.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
+#include <Geom_Plane.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <random>
 #include <string>
@@ -273,6 +277,230 @@ TEST(CheckFaces, FindsTheDepthOfANeighbourAtRandomPoses) {
       }
     }
     EXPECT_GE(found, 60);
+  }
+}
+
+// The floor's section by the plane normal . x = c, from OpenCASCADE's intersection of the two
+// surfaces: its points about 1 um apart in order along `along` (the lines' travel), each with
+// the arc length (chords) from the section's start.
+class Section {
+ public:
+  Section(const Handle(Geom_Surface) & floor, const Eigen::Vector3d& normal, double c,
+          const Eigen::Vector3d& along)
+      : along_(along) {
+    const Handle(Geom_Plane) plane =
+        new Geom_Plane(gp_Pln(gp_Pnt(c * normal.x(), c * normal.y(), c * normal.z()),
+                              gp_Dir(normal.x(), normal.y(), normal.z())));
+    GeomAPI_IntSS cut(floor, plane, 1e-9);
+    EXPECT_TRUE(cut.IsDone());
+    EXPECT_EQ(cut.NbLines(), 1);
+    if (!cut.IsDone() || cut.NbLines() < 1) return;
+    const Handle(Geom_Curve) line = cut.Line(1);
+    constexpr int kPoints = 40000;
+    const double t0 = line->FirstParameter(), t1 = line->LastParameter();
+    for (int i = 0; i <= kPoints; ++i) {
+      const gp_Pnt q = line->Value(t0 + (t1 - t0) * i / kPoints);
+      points_.emplace_back(q.X(), q.Y(), q.Z());
+    }
+    if (points_.front().dot(along) > points_.back().dot(along)) {
+      std::reverse(points_.begin(), points_.end());
+    }
+    arc_.push_back(0.0);
+    for (std::size_t i = 1; i < points_.size(); ++i) {
+      arc_.push_back(arc_.back() + (points_[i] - points_[i - 1]).norm());
+    }
+  }
+  double Length() const { return arc_.empty() ? 0.0 : arc_.back(); }
+  // The arc length from the section's start to its point where it passes p along `along`
+  // (the section runs one way along it), linear between the two points either side.
+  double ArcAt(const Eigen::Vector3d& p) const {
+    if (points_.empty()) return 0.0;
+    const double x = p.dot(along_);
+    std::size_t lo = 0, hi = points_.size() - 1;
+    if (x <= points_[lo].dot(along_)) return 0.0;
+    if (x >= points_[hi].dot(along_)) return arc_.back();
+    while (hi - lo > 1) {
+      const std::size_t mid = (lo + hi) / 2;
+      (points_[mid].dot(along_) <= x ? lo : hi) = mid;
+    }
+    const double a = points_[lo].dot(along_), b = points_[hi].dot(along_);
+    return arc_[lo] + (arc_[hi] - arc_[lo]) * (x - a) / (b - a);
+  }
+
+ private:
+  Eigen::Vector3d along_;
+  std::vector<Eigen::Vector3d> points_;
+  std::vector<double> arc_;
+};
+
+// The contact point's path along a pass on the face, mm: chords between its contact points every
+// `step` mm of the tip's arc length; and its first and last contact points.
+double ContactPath(const strategies::SurfacePass& pass, double step, Eigen::Vector3d* first,
+                   Eigen::Vector3d* last) {
+  const double length = *pass.Length();
+  const int n = std::max(2, static_cast<int>(std::ceil(length / step)));
+  PathState st = pass.Start();
+  strategies::ContactPoint c;
+  EXPECT_EQ(pass.Evaluate(st, &c), strategies::EvalStatus::kOk);
+  *first = *last = c.p;
+  double sum = 0.0;
+  for (int i = 1; i <= n; ++i) {
+    const PathSample smp = pass.At(st, length * i / n);
+    EXPECT_TRUE(smp.status == PathStatus::kOk || smp.status == PathStatus::kEnd);
+    EXPECT_EQ(pass.Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+    sum += (c.p - *last).norm();
+    *last = c.p;
+    st = smp.state;
+  }
+  return sum;
+}
+
+// A stretch of a line as the planner gives it (a pass, or what it leaves out) and as the
+// section measures it: where it starts and ends along the section and its length there.
+struct OnLine {
+  double from = 0.0, to = 0.0;  // arc length along the section, mm
+  double length = 0.0;          // the planner's, mm
+  std::string what;
+};
+
+// For every plane_cc line of `passes` (planes normal . x = c, travelling along `along`) on the
+// floor: the pieces the planner finishes and the stretches it leaves out, in order along the
+// line, each with the section's arc length between its ends (a pass: its contact points; a
+// stretch: from and to), keyed by c in units of 1e-3 mm.
+std::map<long, std::vector<OnLine>> Lines(const strategies::PassList& passes,
+                                          const Handle(Geom_Surface) & floor,
+                                          const Eigen::Vector3d& normal,
+                                          const Eigen::Vector3d& along,
+                                          std::map<long, Section>* sections) {
+  std::map<long, std::vector<OnLine>> lines;
+  const auto on = [&](const Eigen::Vector3d& p) -> const Section& {
+    const long key = std::lround(normal.dot(p) * 1e3);
+    auto it = sections->find(key);
+    if (it == sections->end()) {
+      it = sections->emplace(key, Section(floor, normal, static_cast<double>(key) * 1e-3, along))
+               .first;
+    }
+    return it->second;
+  };
+  for (const auto& pass : passes.passes) {
+    Eigen::Vector3d a, b;
+    const double length = ContactPath(*pass, 0.02, &a, &b);
+    const Section& s = on(a);
+    lines[std::lround(normal.dot(a) * 1e3)].push_back(
+        {s.ArcAt(a), s.ArcAt(b), length, fmt::format("pass {}", pass->Index())});
+  }
+  for (const auto& u : passes.unreachable) {
+    const Section& s = on(u.from);
+    lines[std::lround(normal.dot(u.from) * 1e3)].push_back(
+        {s.ArcAt(u.from), s.ArcAt(u.to), u.length_mm,
+         fmt::format("stretch of line {} ({})", u.line, u.why.substr(0, 60))});
+  }
+  for (auto& [key, l] : lines) {
+    for (OnLine& o : l) {
+      if (o.from > o.to) std::swap(o.from, o.to);  // traced from the line's other end
+    }
+    std::sort(l.begin(), l.end(), [](const OnLine& x, const OnLine& y) {
+      return x.from != y.from ? x.from < y.from : x.to < y.to;
+    });
+  }
+  return lines;
+}
+
+// The pocket with its walls leaning into it, over the floor: their tops 1 mm in on average and
+// waving 2 mm in and out, every 8 mm along the side walls and 6.5 mm along the back one, so that
+// beside them a ball R1 or R3 and a flat end R2 (of unlimited length) fit only in places.
+WallShape LeaningWaves() {
+  WallShape w;
+  w.lean_mm = -1.0;
+  w.wave_mm = 2.0;
+  w.side_period_mm = 8.0;
+  w.back_period_mm = 6.5;
+  w.points = 161;
+  return w;
+}
+
+// A 3-axis job on the floor of the pocket in `step`, with `tool` and `strategy` (its [tool] and
+// [strategy] keys).
+io::Job FloorJob(const std::string& step, const std::string& tool, const std::string& strategy) {
+  return io::ParseJob(
+      fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+face = "floor"
+[tool]
+{}
+[strategy]
+{}
+)",
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, tool, strategy),
+      test::Scratch("waving_pocket.toml"));
+}
+
+// Every plane_cc line of `setup` (planes normal . x = c, travelling along `along`): its pieces and
+// the stretches it leaves out follow one another along the floor's section from one side of the
+// floor to the other (each starts where the one before ends, within `tolerance` mm of the
+// section's arc length), and each is as long as the section between its ends. Returns the lines.
+std::map<long, std::vector<OnLine>> ExpectEachLineOnce(const io::SurfaceSetup& setup,
+                                                       const TopoDS_Face& floor,
+                                                       const Eigen::Vector3d& normal,
+                                                       const Eigen::Vector3d& along,
+                                                       double tolerance) {
+  std::map<long, Section> sections;
+  const auto lines = Lines(setup.passes, BRep_Tool::Surface(floor), normal, along, &sections);
+  for (const auto& [key, l] : lines) {
+    std::string all;
+    for (const OnLine& o : l)
+      all += fmt::format("\n  [{:.6f}, {:.6f}] {:.6f} mm: {}", o.from, o.to, o.length, o.what);
+    SCOPED_TRACE(fmt::format("line {} mm:{}", static_cast<double>(key) * 1e-3, all));
+    double at = 0.0, sum = 0.0;
+    for (const OnLine& o : l) {
+      EXPECT_NEAR(o.from, at, tolerance) << o.what;
+      EXPECT_NEAR(o.length, o.to - o.from, tolerance) << o.what;
+      at = o.to;
+      sum += o.length;
+    }
+    const double section = sections.at(key).Length();
+    EXPECT_NEAR(at, section, tolerance);
+    EXPECT_NEAR(sum, section, tolerance * static_cast<double>(l.size()));
+  }
+  return lines;
+}
+
+// A flat end R2 along the planes y = 8.75 and 10.05 mm (plane_cc, travelling along x) across the
+// floor's valley at x = 20. Where its bottom's edge touches the valley, the tool's path folds back
+// (its tip moves against the travel as the contact point moves on), and the tool fits at points on
+// either side of the fold from which its travel leads back into the valley. Each line is finished
+// in two pieces, the valley and the two walls' sides left out, and these follow one another along
+// the floor's section (OpenCASCADE's intersection of the floor and the plane) each as long as the
+// section between its ends. The march of the contact point through the valley used to stop at
+// such a point: the piece from there went straight back into the valley, whose stretch was marched
+// back to the point on the other side, and so on (4 million trace steps, then an error).
+TEST(CheckFaces, AFlatEndMarchesThroughAValleyWhereItsPathFoldsBack) {
+  const Pocket p = MakePocket(LeaningWaves());
+  const std::string step = test::WriteNamedFaces(
+      {{p.floor, "floor"}, {p.left, "left"}, {p.right, "right"}, {p.back, "back"}},
+      test::Scratch("leaning_pocket.stp"));
+  const io::Job job = FloorJob(step, "kind = \"flat_end\"\nradius_mm = 2",
+                               "kind = \"plane_cc\"\nplane_normal = [0, 1, 0]\ndirection = [1, 0, "
+                               "0]\nstepover_mm = 1.3\nrange = [8.75, 10.05]");
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  const auto lines =
+      ExpectEachLineOnce(setup, p.floor, Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX(), 1e-4);
+  ASSERT_EQ(lines.size(), 2u);
+  for (const auto& [key, l] : lines) {
+    SCOPED_TRACE(fmt::format("line {} mm", static_cast<double>(key) * 1e-3));
+    int passes = 0, valley = 0;
+    for (const OnLine& o : l) {
+      if (o.what.rfind("pass", 0) == 0) {
+        ++passes;
+      } else if (o.from > 15.0 && o.to < 25.0) {
+        ++valley;
+      }
+    }
+    EXPECT_EQ(passes, 2);
+    EXPECT_EQ(valley, 1);
+    EXPECT_EQ(l.size(), 5u);
   }
 }
 
