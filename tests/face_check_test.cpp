@@ -2,7 +2,9 @@
 // a floor with B-spline walls standing at three of its edges (a pocket of spline faces), the
 // walls sharing the floor's edges, finished with a ball; the depth of every wall in the tool at
 // points of the planned passes the trace never looked at, by OpenCASCADE's distance between the
-// tool's axis and the wall.
+// tool's axis and the wall. With walls that lean into the pocket and wave, where the tool fits
+// beside them only in places: every line's pieces and stretches left out, against OpenCASCADE's
+// section of the floor.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -158,7 +160,8 @@ class DeepestWall {
 
 // The deepest any of `walls` goes into the ball of radius r along every pass of `setup`, at the
 // middle of every `step` mm of arc length (points the trace, stepping 0.1 mm from the pass's
-// start, did not check).
+// start, did not check), short of the pass's end (which it did: where a wall stops a pass, its
+// end lies where the wall comes to the check's tolerance).
 DeepestWall DeepestAlongPasses(const io::SurfaceSetup& setup, double r, const Walls& walls,
                                double step) {
   DeepestWall deepest(walls, r);
@@ -166,7 +169,8 @@ DeepestWall DeepestAlongPasses(const io::SurfaceSetup& setup, double r, const Wa
     const auto& pass = *setup.passes.passes[k];
     const double length = *pass.Length();
     PathState state = pass.Start();
-    for (double s = 0.5 * step; s < length; s += step) {
+    for (int i = 0; (i + 0.5) * step < length - 1e-6; ++i) {
+      const double s = (i + 0.5) * step;
       const PathSample smp = pass.At(state, s);
       if (smp.status != PathStatus::kOk) continue;
       state = smp.state;
@@ -501,6 +505,42 @@ TEST(CheckFaces, AFlatEndMarchesThroughAValleyWhereItsPathFoldsBack) {
     EXPECT_EQ(passes, 2);
     EXPECT_EQ(valley, 1);
     EXPECT_EQ(l.size(), 5u);
+  }
+}
+
+// Balls R1 and R3 finishing the floor of the pocket whose walls lean into it and wave (plane_cc,
+// along the side walls and towards the back one): every line's pieces and the stretches left out
+// beside the walls follow one another along the floor's section, each as long as the section
+// between its ends (1e-4 mm), and no wall goes into the ball by more than the check's tolerance
+// in the middle of every 0.1 mm of every pass (points the trace did not check), by OpenCASCADE's
+// distance.
+TEST(CheckFaces, APocketWithWavingWallsLeaningInIsFinishedOrLeftOutOnceAlongEveryLine) {
+  const Pocket p = MakePocket(LeaningWaves());
+  const Walls walls = {{p.left, "left"}, {p.right, "right"}, {p.back, "back"}};
+  const std::string step = test::WriteNamedFaces({{p.floor, "floor"}, walls[0], walls[1], walls[2]},
+                                                 test::Scratch("leaning_pocket.stp"));
+  for (const double r : {1.0, 3.0}) {
+    for (const bool along_y : {true, false}) {
+      SCOPED_TRACE(fmt::format("ball R{}, planes {} = const", r, along_y ? "x" : "y"));
+      const io::Job job = FloorJob(
+          step, fmt::format("kind = \"ball_end\"\nradius_mm = {}", r),
+          along_y ? "kind = \"plane_cc\"\nplane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\n"
+                    "stepover_mm = 1.3"
+                  : "kind = \"plane_cc\"\nplane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\n"
+                    "stepover_mm = 1.3");
+      const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+      ASSERT_GE(setup.passes.passes.size(), 25u);
+      const Eigen::Vector3d normal = along_y ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+      const Eigen::Vector3d along = along_y ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+      const auto lines = ExpectEachLineOnce(setup, p.floor, normal, along, 1e-4);
+      // Beside the walls, where their tops wave over the floor, lines are cut into pieces.
+      std::size_t most = 0;
+      for (const auto& [key, l] : lines) most = std::max(most, l.size());
+      EXPECT_GE(most, 9u);
+      const DeepestWall d = DeepestAlongPasses(setup, r, walls, 0.1);
+      EXPECT_LE(d.depth, job.surface->check_tolerance_mm) << d.where;
+      EXPECT_GT(d.depth, -0.01) << d.where;  // the passes come to the walls
+    }
   }
 }
 
