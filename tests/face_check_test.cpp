@@ -2,7 +2,9 @@
 // a floor with B-spline walls standing at three of its edges (a pocket of spline faces), the
 // walls sharing the floor's edges, finished with a ball; the depth of every wall in the tool at
 // points of the planned passes the trace never looked at, by OpenCASCADE's distance between the
-// tool's axis and the wall.
+// tool's axis and the wall. With walls that lean into the pocket and wave, where the tool fits
+// beside them only in places: every line's pieces and stretches left out, against OpenCASCADE's
+// section of the floor.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -12,14 +14,18 @@
 #include <BRepExtrema_DistShapeShape.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
+#include <GeomAPI_IntSS.hxx>
 #include <GeomAPI_PointsToBSpline.hxx>
 #include <GeomAPI_PointsToBSplineSurface.hxx>
 #include <GeomFill.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
+#include <Geom_Plane.hxx>
 #include <TColgp_Array1OfPnt.hxx>
 #include <TColgp_Array2OfPnt.hxx>
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <random>
 #include <string>
@@ -71,24 +77,35 @@ struct Pocket {
   TopoDS_Face floor, left, right, back;
 };
 
-// The floor and three walls 12 mm tall at its edges x = 0, x = 40 and y = 40, each leaning out of
-// the pocket by about 15 deg (none overhangs the floor) and waving along its length, its top 0.8
-// mm in and out over 20 mm (the left and right walls) or 13 mm (the back one).
-Pocket MakePocket() {
+// How the pocket's walls stand: each leans out of the pocket by `lean_mm` at its top (negative:
+// into it, over the floor) and waves along its length, its top `wave_mm` in and out with a
+// period of `side_period_mm` (the left and right walls) or `back_period_mm` (the back one), the
+// top interpolated through `points` points.
+struct WallShape {
+  double lean_mm = 3.5, wave_mm = 0.8, side_period_mm = 20.0, back_period_mm = 13.0;
+  int points = 41;
+};
+
+// The floor and three walls 12 mm tall at its edges x = 0, x = 40 and y = 40, shaped as `shape`
+// says: by default each leans out of the pocket by about 15 deg (none overhangs the floor), its
+// top 0.8 mm in and out over 20 mm (the left and right walls) or 13 mm (the back one).
+Pocket MakePocket(const WallShape& shape = {}) {
   const Handle(Geom_BSplineSurface) floor = Floor();
   double u0, u1, v0, v1;
   floor->Bounds(u0, u1, v0, v1);
   Pocket p;
   p.floor = BRepBuilderAPI_MakeFace(Handle(Geom_Surface)(floor), 1e-7).Face();
-  const auto top = [](double x0, double lean, bool along_y, double period) {
-    return CurveThrough(41, [=](double t) {
-      const double w = 40.0 * t, out = lean + 0.8 * std::sin(2.0 * kPi * w / period);
+  // The top of the wall at x0 (or y0), `outward` the way out of the pocket (+1 or -1).
+  const auto top = [&](double x0, double outward, bool along_y, double period) {
+    return CurveThrough(shape.points, [=](double t) {
+      const double w = 40.0 * t,
+                   out = outward * shape.lean_mm + shape.wave_mm * std::sin(2.0 * kPi * w / period);
       return along_y ? gp_Pnt(x0 + out, w, 12.0) : gp_Pnt(w, x0 + out, 12.0);
     });
   };
-  p.left = Wall(floor->UIso(u0), top(0.0, -3.5, true, 20.0));
-  p.right = Wall(floor->UIso(u1), top(40.0, 3.5, true, 20.0));
-  p.back = Wall(floor->VIso(v1), top(40.0, 3.5, false, 13.0));
+  p.left = Wall(floor->UIso(u0), top(0.0, -1.0, true, shape.side_period_mm));
+  p.right = Wall(floor->UIso(u1), top(40.0, 1.0, true, shape.side_period_mm));
+  p.back = Wall(floor->VIso(v1), top(40.0, 1.0, false, shape.back_period_mm));
   return p;
 }
 
@@ -143,7 +160,8 @@ class DeepestWall {
 
 // The deepest any of `walls` goes into the ball of radius r along every pass of `setup`, at the
 // middle of every `step` mm of arc length (points the trace, stepping 0.1 mm from the pass's
-// start, did not check).
+// start, did not check), short of the pass's end (which it did: where a wall stops a pass, its
+// end lies where the wall comes to the check's tolerance).
 DeepestWall DeepestAlongPasses(const io::SurfaceSetup& setup, double r, const Walls& walls,
                                double step) {
   DeepestWall deepest(walls, r);
@@ -151,7 +169,8 @@ DeepestWall DeepestAlongPasses(const io::SurfaceSetup& setup, double r, const Wa
     const auto& pass = *setup.passes.passes[k];
     const double length = *pass.Length();
     PathState state = pass.Start();
-    for (double s = 0.5 * step; s < length; s += step) {
+    for (int i = 0; (i + 0.5) * step < length - 1e-6; ++i) {
+      const double s = (i + 0.5) * step;
       const PathSample smp = pass.At(state, s);
       if (smp.status != PathStatus::kOk) continue;
       state = smp.state;
@@ -262,6 +281,266 @@ TEST(CheckFaces, FindsTheDepthOfANeighbourAtRandomPoses) {
       }
     }
     EXPECT_GE(found, 60);
+  }
+}
+
+// The floor's section by the plane normal . x = c, from OpenCASCADE's intersection of the two
+// surfaces: its points about 1 um apart in order along `along` (the lines' travel), each with
+// the arc length (chords) from the section's start.
+class Section {
+ public:
+  Section(const Handle(Geom_Surface) & floor, const Eigen::Vector3d& normal, double c,
+          const Eigen::Vector3d& along)
+      : along_(along) {
+    const Handle(Geom_Plane) plane =
+        new Geom_Plane(gp_Pln(gp_Pnt(c * normal.x(), c * normal.y(), c * normal.z()),
+                              gp_Dir(normal.x(), normal.y(), normal.z())));
+    GeomAPI_IntSS cut(floor, plane, 1e-9);
+    EXPECT_TRUE(cut.IsDone());
+    EXPECT_EQ(cut.NbLines(), 1);
+    if (!cut.IsDone() || cut.NbLines() < 1) return;
+    const Handle(Geom_Curve) line = cut.Line(1);
+    constexpr int kPoints = 40000;
+    const double t0 = line->FirstParameter(), t1 = line->LastParameter();
+    for (int i = 0; i <= kPoints; ++i) {
+      const gp_Pnt q = line->Value(t0 + (t1 - t0) * i / kPoints);
+      points_.emplace_back(q.X(), q.Y(), q.Z());
+    }
+    if (points_.front().dot(along) > points_.back().dot(along)) {
+      std::reverse(points_.begin(), points_.end());
+    }
+    arc_.push_back(0.0);
+    for (std::size_t i = 1; i < points_.size(); ++i) {
+      arc_.push_back(arc_.back() + (points_[i] - points_[i - 1]).norm());
+    }
+  }
+  double Length() const { return arc_.empty() ? 0.0 : arc_.back(); }
+  // The arc length from the section's start to its point where it passes p along `along`
+  // (the section runs one way along it), linear between the two points either side.
+  double ArcAt(const Eigen::Vector3d& p) const {
+    if (points_.empty()) return 0.0;
+    const double x = p.dot(along_);
+    std::size_t lo = 0, hi = points_.size() - 1;
+    if (x <= points_[lo].dot(along_)) return 0.0;
+    if (x >= points_[hi].dot(along_)) return arc_.back();
+    while (hi - lo > 1) {
+      const std::size_t mid = (lo + hi) / 2;
+      (points_[mid].dot(along_) <= x ? lo : hi) = mid;
+    }
+    const double a = points_[lo].dot(along_), b = points_[hi].dot(along_);
+    return arc_[lo] + (arc_[hi] - arc_[lo]) * (x - a) / (b - a);
+  }
+
+ private:
+  Eigen::Vector3d along_;
+  std::vector<Eigen::Vector3d> points_;
+  std::vector<double> arc_;
+};
+
+// The contact point's path along a pass on the face, mm: chords between its contact points every
+// `step` mm of the tip's arc length; and its first and last contact points.
+double ContactPath(const strategies::SurfacePass& pass, double step, Eigen::Vector3d* first,
+                   Eigen::Vector3d* last) {
+  const double length = *pass.Length();
+  const int n = std::max(2, static_cast<int>(std::ceil(length / step)));
+  PathState st = pass.Start();
+  strategies::ContactPoint c;
+  EXPECT_EQ(pass.Evaluate(st, &c), strategies::EvalStatus::kOk);
+  *first = *last = c.p;
+  double sum = 0.0;
+  for (int i = 1; i <= n; ++i) {
+    const PathSample smp = pass.At(st, length * i / n);
+    EXPECT_TRUE(smp.status == PathStatus::kOk || smp.status == PathStatus::kEnd);
+    EXPECT_EQ(pass.Evaluate(smp.state, &c), strategies::EvalStatus::kOk);
+    sum += (c.p - *last).norm();
+    *last = c.p;
+    st = smp.state;
+  }
+  return sum;
+}
+
+// A stretch of a line as the planner gives it (a pass, or what it leaves out) and as the
+// section measures it: where it starts and ends along the section and its length there.
+struct OnLine {
+  double from = 0.0, to = 0.0;  // arc length along the section, mm
+  double length = 0.0;          // the planner's, mm
+  std::string what;
+};
+
+// For every plane_cc line of `passes` (planes normal . x = c, travelling along `along`) on the
+// floor: the pieces the planner finishes and the stretches it leaves out, in order along the
+// line, each with the section's arc length between its ends (a pass: its contact points; a
+// stretch: from and to), keyed by c in units of 1e-3 mm.
+std::map<long, std::vector<OnLine>> Lines(const strategies::PassList& passes,
+                                          const Handle(Geom_Surface) & floor,
+                                          const Eigen::Vector3d& normal,
+                                          const Eigen::Vector3d& along,
+                                          std::map<long, Section>* sections) {
+  std::map<long, std::vector<OnLine>> lines;
+  const auto on = [&](const Eigen::Vector3d& p) -> const Section& {
+    const long key = std::lround(normal.dot(p) * 1e3);
+    auto it = sections->find(key);
+    if (it == sections->end()) {
+      it = sections->emplace(key, Section(floor, normal, static_cast<double>(key) * 1e-3, along))
+               .first;
+    }
+    return it->second;
+  };
+  for (const auto& pass : passes.passes) {
+    Eigen::Vector3d a, b;
+    const double length = ContactPath(*pass, 0.02, &a, &b);
+    const Section& s = on(a);
+    lines[std::lround(normal.dot(a) * 1e3)].push_back(
+        {s.ArcAt(a), s.ArcAt(b), length, fmt::format("pass {}", pass->Index())});
+  }
+  for (const auto& u : passes.unreachable) {
+    const Section& s = on(u.from);
+    lines[std::lround(normal.dot(u.from) * 1e3)].push_back(
+        {s.ArcAt(u.from), s.ArcAt(u.to), u.length_mm,
+         fmt::format("stretch of line {} ({})", u.line, u.why.substr(0, 60))});
+  }
+  for (auto& [key, l] : lines) {
+    for (OnLine& o : l) {
+      if (o.from > o.to) std::swap(o.from, o.to);  // traced from the line's other end
+    }
+    std::sort(l.begin(), l.end(), [](const OnLine& x, const OnLine& y) {
+      return x.from != y.from ? x.from < y.from : x.to < y.to;
+    });
+  }
+  return lines;
+}
+
+// The pocket with its walls leaning into it, over the floor: their tops 1 mm in on average and
+// waving 2 mm in and out, every 8 mm along the side walls and 6.5 mm along the back one, so that
+// beside them a ball R1 or R3 and a flat end R2 (of unlimited length) fit only in places.
+WallShape LeaningWaves() {
+  WallShape w;
+  w.lean_mm = -1.0;
+  w.wave_mm = 2.0;
+  w.side_period_mm = 8.0;
+  w.back_period_mm = 6.5;
+  w.points = 161;
+  return w;
+}
+
+// A 3-axis job on the floor of the pocket in `step`, with `tool` and `strategy` (its [tool] and
+// [strategy] keys).
+io::Job FloorJob(const std::string& step, const std::string& tool, const std::string& strategy) {
+  return io::ParseJob(
+      fmt::format(R"(machine = "{}"
+feed_mm_min = 3000
+[surface]
+file = "{}"
+face = "floor"
+[tool]
+{}
+[strategy]
+{}
+)",
+                  test::Source("samples/machines/mikron_ucp710_xyz.toml"), step, tool, strategy),
+      test::Scratch("waving_pocket.toml"));
+}
+
+// Every plane_cc line of `setup` (planes normal . x = c, travelling along `along`): its pieces and
+// the stretches it leaves out follow one another along the floor's section from one side of the
+// floor to the other (each starts where the one before ends, within `tolerance` mm of the
+// section's arc length), and each is as long as the section between its ends. Returns the lines.
+std::map<long, std::vector<OnLine>> ExpectEachLineOnce(const io::SurfaceSetup& setup,
+                                                       const TopoDS_Face& floor,
+                                                       const Eigen::Vector3d& normal,
+                                                       const Eigen::Vector3d& along,
+                                                       double tolerance) {
+  std::map<long, Section> sections;
+  const auto lines = Lines(setup.passes, BRep_Tool::Surface(floor), normal, along, &sections);
+  for (const auto& [key, l] : lines) {
+    std::string all;
+    for (const OnLine& o : l)
+      all += fmt::format("\n  [{:.6f}, {:.6f}] {:.6f} mm: {}", o.from, o.to, o.length, o.what);
+    SCOPED_TRACE(fmt::format("line {} mm:{}", static_cast<double>(key) * 1e-3, all));
+    double at = 0.0, sum = 0.0;
+    for (const OnLine& o : l) {
+      EXPECT_NEAR(o.from, at, tolerance) << o.what;
+      EXPECT_NEAR(o.length, o.to - o.from, tolerance) << o.what;
+      at = o.to;
+      sum += o.length;
+    }
+    const double section = sections.at(key).Length();
+    EXPECT_NEAR(at, section, tolerance);
+    EXPECT_NEAR(sum, section, tolerance * static_cast<double>(l.size()));
+  }
+  return lines;
+}
+
+// A flat end R2 along the planes y = 8.75 and 10.05 mm (plane_cc, travelling along x) across the
+// floor's valley at x = 20. Where its bottom's edge touches the valley, the tool's path folds back
+// (its tip moves against the travel as the contact point moves on), and the tool fits at points on
+// either side of the fold from which its travel leads back into the valley. Each line is finished
+// in two pieces, the valley and the two walls' sides left out, and these follow one another along
+// the floor's section (OpenCASCADE's intersection of the floor and the plane) each as long as the
+// section between its ends. The march of the contact point through the valley used to stop at
+// such a point: the piece from there went straight back into the valley, whose stretch was marched
+// back to the point on the other side, and so on (4 million trace steps, then an error).
+TEST(CheckFaces, AFlatEndMarchesThroughAValleyWhereItsPathFoldsBack) {
+  const Pocket p = MakePocket(LeaningWaves());
+  const std::string step = test::WriteNamedFaces(
+      {{p.floor, "floor"}, {p.left, "left"}, {p.right, "right"}, {p.back, "back"}},
+      test::Scratch("leaning_pocket.stp"));
+  const io::Job job = FloorJob(step, "kind = \"flat_end\"\nradius_mm = 2",
+                               "kind = \"plane_cc\"\nplane_normal = [0, 1, 0]\ndirection = [1, 0, "
+                               "0]\nstepover_mm = 1.3\nrange = [8.75, 10.05]");
+  const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+  const auto lines =
+      ExpectEachLineOnce(setup, p.floor, Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX(), 1e-4);
+  ASSERT_EQ(lines.size(), 2u);
+  for (const auto& [key, l] : lines) {
+    SCOPED_TRACE(fmt::format("line {} mm", static_cast<double>(key) * 1e-3));
+    int passes = 0, valley = 0;
+    for (const OnLine& o : l) {
+      if (o.what.rfind("pass", 0) == 0) {
+        ++passes;
+      } else if (o.from > 15.0 && o.to < 25.0) {
+        ++valley;
+      }
+    }
+    EXPECT_EQ(passes, 2);
+    EXPECT_EQ(valley, 1);
+    EXPECT_EQ(l.size(), 5u);
+  }
+}
+
+// Balls R1 and R3 finishing the floor of the pocket whose walls lean into it and wave (plane_cc,
+// along the side walls and towards the back one): every line's pieces and the stretches left out
+// beside the walls follow one another along the floor's section, each as long as the section
+// between its ends (1e-4 mm), and no wall goes into the ball by more than the check's tolerance
+// in the middle of every 0.1 mm of every pass (points the trace did not check), by OpenCASCADE's
+// distance.
+TEST(CheckFaces, APocketWithWavingWallsLeaningInIsFinishedOrLeftOutOnceAlongEveryLine) {
+  const Pocket p = MakePocket(LeaningWaves());
+  const Walls walls = {{p.left, "left"}, {p.right, "right"}, {p.back, "back"}};
+  const std::string step = test::WriteNamedFaces({{p.floor, "floor"}, walls[0], walls[1], walls[2]},
+                                                 test::Scratch("leaning_pocket.stp"));
+  for (const double r : {1.0, 3.0}) {
+    for (const bool along_y : {true, false}) {
+      SCOPED_TRACE(fmt::format("ball R{}, planes {} = const", r, along_y ? "x" : "y"));
+      const io::Job job = FloorJob(
+          step, fmt::format("kind = \"ball_end\"\nradius_mm = {}", r),
+          along_y ? "kind = \"plane_cc\"\nplane_normal = [1, 0, 0]\ndirection = [0, 1, 0]\n"
+                    "stepover_mm = 1.3"
+                  : "kind = \"plane_cc\"\nplane_normal = [0, 1, 0]\ndirection = [1, 0, 0]\n"
+                    "stepover_mm = 1.3");
+      const io::SurfaceSetup setup = io::SetUpSurface(job, nullptr);
+      ASSERT_GE(setup.passes.passes.size(), 25u);
+      const Eigen::Vector3d normal = along_y ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+      const Eigen::Vector3d along = along_y ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+      const auto lines = ExpectEachLineOnce(setup, p.floor, normal, along, 1e-4);
+      // Beside the walls, where their tops wave over the floor, lines are cut into pieces.
+      std::size_t most = 0;
+      for (const auto& [key, l] : lines) most = std::max(most, l.size());
+      EXPECT_GE(most, 9u);
+      const DeepestWall d = DeepestAlongPasses(setup, r, walls, 0.1);
+      EXPECT_LE(d.depth, job.surface->check_tolerance_mm) << d.where;
+      EXPECT_GT(d.depth, -0.01) << d.where;  // the passes come to the walls
+    }
   }
 }
 

@@ -670,21 +670,22 @@ class Builder {
       why = *w;
       return false;
     };
-    // Bisection on a step x in (0, h) from `from` (where the tool fits if `fits_from`) to a point
-    // where that changes: the points on either side of the change, to h / 4096, and their steps.
-    // `step` takes x.
+    // Bisection on a step x in (0, h) from `from` (where the tool fits if `fits_from`, as `fit`
+    // says) to a point where that changes: the points on either side of the change, to h / 4096,
+    // and their steps. `step` takes x.
     struct Change {
       ContactPoint fit, unfit;
       double x_fit = 0.0, x_unfit = 0.0;
     };
-    const auto change = [&](bool fits_from, double h, const ContactPoint& from, const auto& step) {
+    const auto change_by = [&](bool fits_from, double h, const ContactPoint& from, const auto& step,
+                               const auto& fit) {
       double lo = 0.0, hi = h;
       ContactPoint p_lo = from, p_hi, p;
       bool have_hi = false;
       for (int k = 0; k < 12; ++k) {
         const double mid = 0.5 * (lo + hi);
         const bool ok = step(mid, &p);
-        if (ok && UnfitAt(p).has_value() != fits_from) {
+        if (ok && fit(p) == fits_from) {
           lo = mid, p_lo = p;
         } else {
           hi = mid, p_hi = p, have_hi = ok;
@@ -701,6 +702,10 @@ class Builder {
         c = {p_hi, p_lo, hi, lo};
       }
       return c;
+    };
+    const auto change = [&](bool fits_from, double h, const ContactPoint& from, const auto& step) {
+      return change_by(fits_from, h, from, step,
+                       [this](const ContactPoint& p) { return !UnfitAt(p).has_value(); });
     };
     const auto tip_step = [&](const ContactPoint& from) {
       return [&e, &from, this](double x, ContactPoint* to) {
@@ -795,7 +800,16 @@ class Builder {
           return end_in_gap();
         }
         const double chord = (next.tip - cur.tip).norm();
-        if (gap->stuck && fits(next, s + chord)) {
+        // A piece resumes only where the tool fits and its travel (the tip along the feed) carries
+        // the contact point on in the march's direction. Where the tool's path is folded back
+        // (the face tighter than the tool: a flat bottom's edge in a valley), the tool may fit at
+        // a point whose travel takes the contact point back into the stretch just marched: a
+        // piece from there would end at once, and the stretch it opened would be marched back to
+        // the last such point, and so on for ever.
+        const auto onward = [](const ContactPoint& p, const Eigen::Vector2d& d) {
+          return p.duv.dot(d) > 0.0;
+        };
+        if (gap->stuck && fits(next, s + chord) && onward(next, dir)) {
           s += chord;
           gap->contact_mm += (next.p - cur.p).norm();
           cur = next;
@@ -803,14 +817,17 @@ class Builder {
           h = full / 1024.0;
           continue;
         }
-        if (fits(next, s + chord)) {
+        if (fits(next, s + chord) && onward(next, dir)) {
           // The tool fits again: the next piece starts where it does, traced on from there.
           const ContactPoint from = cur;
           const Eigen::Vector2d from_dir = gap_dir;
-          const Change c = change(false, full, from, [&](double m, ContactPoint* to) {
-            Eigen::Vector2d d = from_dir;
-            return MarchContact(e, from, m, &d, to);
-          });
+          const Change c = change_by(
+              false, full, from,
+              [&](double m, ContactPoint* to) {
+                Eigen::Vector2d d = from_dir;
+                return MarchContact(e, from, m, &d, to);
+              },
+              [&](const ContactPoint& p) { return onward(p, from_dir) && !UnfitAt(p); });
           s += (c.fit.tip - from.tip).norm();
           gap->contact_mm += (c.fit.p - from.p).norm();
           cur = c.fit;
