@@ -33,6 +33,19 @@ constexpr double kGradientStep = 1e-5;
 // the feasible set rather than onto its boundary).
 constexpr double kInterior = 0.01;
 
+// Linear programs allowed for smoothing a window: one smooths, the others restore the limits.
+constexpr int kSmoothingPrograms = 12;
+// Smoothings of one window, each from the last one kept.
+constexpr int kSmoothingRounds = 3;
+// The smoothing LP's trust region, as a share of the attempt's: a full one missed the exact rows
+// by up to 1 % and the restoration seldom brought them back (one window of the trident's eleven
+// shortened ones smoothed, its axes' jerk flips 88 against 74); a share of 0.02 smoothed two, the
+// windows that held the flips (12 flips; 0.05: 30, 0.01: 11).
+constexpr double kSmoothingStep = 0.02;
+
+// The fourth difference: the change of the third (the path's jerk) from one period to the next.
+constexpr double kFourth[5] = {1, -4, 6, -4, 1};
+
 // The smootherstep 6x^5 - 15x^4 + 10x^3: a warp of the period index that is flat (to second
 // order) at both ends of a window, so the periods that join the kept ones keep their rates.
 double Smootherstep(double x) { return x * x * x * (x * (6.0 * x - 15.0) + 10.0); }
@@ -73,8 +86,9 @@ class Shortener {
   void Sweep(long first) {
     const long m = o_.window_periods;
     for (long a = first;; a += o_.window_stride) {
-      // The window must leave the plan's last three rows (rest) after it.
-      const long size = static_cast<long>(plan_.size());
+      // The window must leave the motion's last three rows (rest) after it; the rows at rest
+      // after them are no window's to take.
+      const long size = Moving();
       if (a + m + 3 > size) {
         if (a - o_.window_stride + m + 3 >= size) break;
         a = size - m - 3;  // the last window ends where the rest begins
@@ -84,11 +98,21 @@ class Shortener {
       // Periods to take off: doubled after each success until one fails, then halved.
       long d = 1;
       bool failed = false;
+      bool smooth = false;  // the window was shortened: smooth it once done
       for (;;) {
         // The last window moves back as it shortens the plan, to keep the rest after it.
-        a = std::min(a, static_cast<long>(plan_.size()) - m - 3);
-        if (Attempt(a, m, d)) {
+        a = std::min(a, Moving() - m - 3);
+        bool shorter = false;
+        try {
+          shorter = Attempt(a, m, d);
+        } catch (const Error&) {
+          // The path could not be followed at an arc length between two of the plan's (a
+          // surface's solve that did not converge there): this window keeps its periods.
+          ++stats_.failed_evaluations;
+        }
+        if (shorter) {
           stats_.periods_saved += d;
+          smooth = true;
           if (!failed) d = std::min<long>(2L * d, m / 4);
         } else if (d == 1) {
           break;
@@ -97,10 +121,36 @@ class Shortener {
           d /= 2;
         }
       }
+      if (smooth) {
+        // The LPs' solutions lie on vertices: the path's jerk may take the extreme an axis allows
+        // one period and the other extreme the next (chatter, docs/planner.md). One more
+        // question, at the window's final length: the least change of the path's jerk that keeps
+        // every limit.
+        a = std::min(a, Moving() - m - 3);
+        try {
+          for (int round = 0; round < kSmoothingRounds && Attempt(a, m, 0, Goal::kSmoother);
+               ++round) {
+            ++stats_.smoothed;
+          }
+        } catch (const Error&) {
+          ++stats_.failed_evaluations;
+        }
+      }
     }
   }
 
- private:
+  // The rows up to three after the last that moves (the plan's rows at rest after those are
+  // left as they are).
+  long Moving() const {
+    long last = static_cast<long>(plan_.size()) - 1;
+    while (last > 0 &&
+           plan_[static_cast<std::size_t>(last)].s == plan_[static_cast<std::size_t>(last - 1)].s &&
+           plan_[static_cast<std::size_t>(last)].q == plan_[static_cast<std::size_t>(last - 1)].q) {
+      --last;
+    }
+    return std::min(static_cast<long>(plan_.size()), last + 4);
+  }
+
   // The exact pose at arc length s, starting the path's solve from `near`.
   PlannedStep Evaluate(double s, const PlannedStep& near) {
     ++stats_.evaluations;
@@ -151,7 +201,11 @@ class Shortener {
 
   // Replaces the plan's periods [a, a + m) by m - d periods covering the same arc length, if the
   // sequential linear programs find such periods that keep every limit. Returns whether it did.
-  bool Attempt(long a, long m, long d) {
+  // What an attempt asks of the window: fewer periods, or (at the same number) a path jerk that
+  // changes less from one period to the next.
+  enum class Goal { kShorter, kSmoother };
+
+  bool Attempt(long a, long m, long d, Goal goal = Goal::kShorter) {
     ++stats_.attempts;
     end_s_ = plan_.back().s;
     const long n = m - d;
@@ -205,11 +259,33 @@ class Shortener {
       }
       return worst;
     };
+    // The path's jerk changes: the sum of |fourth differences| of s over the rows that hold a
+    // window period.
+    const auto roughness = [&]() {
+      double sum = 0.0;
+      for (long k = a; k < a + n + 4; ++k) {
+        double e = 0.0;
+        for (int j = 0; j <= 4; ++j) e += kFourth[j] * at(k - j).s;
+        sum += std::abs(e);
+      }
+      return sum;
+    };
+    const bool smoother = goal == Goal::kSmoother;
     double current = excess();
-    if (current <= 0.0) return Accept(a, m, std::move(x));
+    if (current <= 0.0 && !smoother) return Accept(a, m, std::move(x));
+    if (current > 0.0 && smoother) return false;
+    const double rough = smoother ? roughness() : 0.0;
+    // Smoother: the first LP smooths; where its step misses an exact row, the next ones bring the
+    // smoothed window back within the limits (least excess, as for a shorter window), and it is
+    // kept only if it is still smoother.
+    bool smoothing = smoother;
 
     double radius = 0.0;
     for (long k = a; k < a + n; ++k) radius = std::max(radius, at(k).s - at(k - 1).s);
+    // No step of s moves farther than two periods' travel: beyond that the iterate would ask the
+    // path for poses far from where its solves were started (a surface pass's Newton from the
+    // plan's neighbouring state).
+    const double widest = std::max(2.0 * radius, 1e-6);
     radius = std::max(0.25 * radius, 1e-6);
     std::vector<Slope> g(static_cast<std::size_t>(n));
     bool fresh = false;  // g holds the gradients at x
@@ -217,7 +293,8 @@ class Shortener {
     // from: the rows change little from one LP of an attempt to the next.
     std::vector<unsigned char> basis;
     std::vector<long> basis_keys;
-    for (int lp = 0; lp < o_.max_lps; ++lp) {
+    const int max_lps = smoother ? kSmoothingPrograms : o_.max_lps;
+    for (int lp = 0; lp < max_lps; ++lp) {
       if (!fresh) {
         for (long k = 0; k < n; ++k)
           g[static_cast<std::size_t>(k)] = SlopeAt(x[static_cast<std::size_t>(k)]);
@@ -291,17 +368,46 @@ class Shortener {
           }
         }
       }
-      std::vector<double> col_lo(static_cast<std::size_t>(n + 1)), col_hi(col_lo.size()),
-          objective(col_lo.size(), 0.0);
+      // Smoother: one column u_k >= |fourth difference of s at k| per row k, their sum the
+      // objective, and every row kept within its limit (t <= 0).
+      long columns = n + 1;
+      if (smoothing) {
+        for (long k = a; k < a + n + 4; ++k, ++columns) {
+          double e = 0.0, c[5];
+          long period[5];
+          int count = 0;
+          for (int j = 0; j <= 4; ++j) {
+            e += kFourth[j] * at(k - j).s;
+            if (k - j >= a && k - j < a + n) period[count] = k - j, c[count++] = kFourth[j];
+          }
+          for (int side = 0; side < 2; ++side) {
+            for (int q = 0; q < count; ++q) {
+              row_index.push_back(rows);
+              column_index.push_back(static_cast<int>(period[q] - a));
+              value.push_back(side == 0 ? -c[q] : c[q]);
+            }
+            row_index.push_back(rows);
+            column_index.push_back(static_cast<int>(columns));
+            value.push_back(1.0);
+            row_lo.push_back(side == 0 ? e : -e);
+            row_hi.push_back(INFINITY);
+            ++rows;
+          }
+        }
+        basis.clear();  // the columns differ from the last LP's
+      }
+      std::vector<double> col_lo(static_cast<std::size_t>(columns), 0.0),
+          col_hi(col_lo.size(), INFINITY), objective(col_lo.size(), smoothing ? 1.0 : 0.0);
       for (long k = 0; k < n; ++k) {
         const double s = x[static_cast<std::size_t>(k)].s;
-        const double r = std::min(radius, g[static_cast<std::size_t>(k)].reach);
+        const double r = std::min(radius, g[static_cast<std::size_t>(k)].reach) *
+                         (smoothing ? kSmoothingStep : 1.0);
         col_lo[static_cast<std::size_t>(k)] = std::max(-r, -s);
         col_hi[static_cast<std::size_t>(k)] = std::min(r, end_s_ - s);
       }
       col_lo[static_cast<std::size_t>(n)] = -kInterior;
-      col_hi[static_cast<std::size_t>(n)] = INFINITY;
-      objective[static_cast<std::size_t>(n)] = 1.0;
+      col_hi[static_cast<std::size_t>(n)] = smoothing ? 0.0 : INFINITY;
+      objective[static_cast<std::size_t>(n)] = smoothing ? 0.0 : 1.0;
       const CoinPackedMatrix matrix(true, row_index.data(), column_index.data(), value.data(),
                                     static_cast<CoinBigIndex>(value.size()));
       ClpSimplex model;
@@ -326,12 +432,14 @@ class Shortener {
       model.dual();
       ++stats_.linear_programs;
       if (model.status() != 0) return false;
-      const unsigned char* status = model.statusArray();
-      basis.assign(status, status + n + 1 + rows);
-      basis_keys = keys;
+      if (!smoothing) {
+        const unsigned char* status = model.statusArray();
+        basis.assign(status, status + n + 1 + rows);
+        basis_keys = keys;
+      }
       const double* solution = model.primalColumnSolution();
       const double predicted = solution[n];
-      if (predicted >= current - 1e-9) return false;  // the model sees no way down
+      if (!smoothing && predicted >= current - 1e-9) return false;  // the model sees no way down
       std::vector<PlannedStep> y(x.size());
       double moved = 0.0;  // the largest step, relative to the radius
       for (long k = 0; k < n; ++k) {
@@ -343,10 +451,17 @@ class Shortener {
       }
       std::swap(x, y);
       const double trial = excess();
+      if (smoothing) {
+        smoothing = false;
+        if (trial <= 0.0) return roughness() < rough && Accept(a, m, std::move(x));
+        current = trial;  // restore the limits from here
+        fresh = false;
+        continue;
+      }
       if (trial < current) {
-        if (trial <= 0.0) return Accept(a, m, std::move(x));
+        if (trial <= 0.0) return (!smoother || roughness() < rough) && Accept(a, m, std::move(x));
         const double ratio = (current - trial) / (current - predicted);
-        if (ratio > 0.5 && moved > 0.9) radius *= 2.0;
+        if (ratio > 0.5 && moved > 0.9) radius = std::min(2.0 * radius, widest);
         if (ratio < 0.1) radius *= 0.5 * std::min(moved, 1.0);
         current = trial;
         fresh = false;

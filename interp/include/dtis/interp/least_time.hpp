@@ -61,12 +61,15 @@ struct LeastTimeStats {
   long attempts = 0;  // (window, periods removed) feasibility problems posed
   long linear_programs = 0;
   long evaluations = 0;  // exact poses
+  // Attempts given up because the path could not be followed at an arc length they asked for.
+  long failed_evaluations = 0;
   long periods_saved = 0;
+  long smoothed = 0;  // windows whose path jerk was smoothed after they were shortened
 };
 
-// Shortens `plan` (at rest at both ends, every period within `limits`) in place. Throws
-// dtis::Error when the path cannot be followed at an arc length the plan did not hold (it only
-// asks for arc lengths between two of the plan's).
+// Shortens `plan` (at rest at both ends, every period within `limits`) in place. Where the path
+// cannot be followed at an arc length an attempt asks for, that attempt is given up: the plan
+// stays as it was there.
 LeastTimeStats ShortenPlan(const PathSource& path, const Machine& machine,
                            const LeastTimeLimits& limits, const LeastTimeOptions& options,
                            std::vector<PlannedStep>* plan);
