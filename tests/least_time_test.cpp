@@ -115,6 +115,27 @@ TEST(LeastTime, CornersOfAnAccelerationLimitedMachineAreNoSlowerThanEitherPlanne
   }
 }
 
+long Flips(const interp::VerifyReport& report) {
+  long flips = 0;
+  for (const auto& axis : report.axes) flips += axis.jerk_flips;
+  return flips;
+}
+
+// The linear programs' vertices may flip an axis' jerk between its extremes from one period to
+// the next. With no_added_chatter a shortened window that flips more than the plan it replaced is
+// given back: the trident's axes flip no more often than the look-ahead's (18 times), and the
+// motion is still no longer than the look-ahead's.
+TEST(LeastTime, NoAddedChatterFlipsTheAxesNoMoreThanThePlanItStartsFrom) {
+  const Sample s = Load("trident");
+  interp::VpopOptions o = s.job.vpop;
+  o.least_time.no_added_chatter = true;
+  const Planned least = Plan(*s.path, *s.machine, o, PlannerKind::kLeastTime);
+  const Planned ahead = Plan(*s.path, *s.machine, o, PlannerKind::kLookAhead);
+  EXPECT_TRUE(least.report.Passed()) << interp::FormatReport(least.report);
+  EXPECT_LE(Flips(least.report), Flips(ahead.report));
+  EXPECT_LE(least.summary.motion_time_s, ahead.summary.motion_time_s);
+}
+
 // It plans a path whole: a commit horizon (a stream to a machine) is refused with a message that
 // names the planners that stream.
 TEST(LeastTime, RefusesToStream) {

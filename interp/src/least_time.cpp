@@ -85,13 +85,14 @@ class Shortener {
  private:
   void Sweep(long first) {
     const long m = o_.window_periods;
-    for (long a = first;; a += o_.window_stride) {
+    bool last = false;
+    for (long a = first; !last; a += o_.window_stride) {
       // The window must leave the motion's last three rows (rest) after it; the rows at rest
       // after them are no window's to take.
       const long size = Moving();
-      if (a + m + 3 > size) {
-        if (a - o_.window_stride + m + 3 >= size) break;
+      if (a + m + 3 >= size) {
         a = size - m - 3;  // the last window ends where the rest begins
+        last = true;
         if (a < 3) break;
       }
       ++stats_.windows;
@@ -99,6 +100,9 @@ class Shortener {
       long d = 1;
       bool failed = false;
       bool smooth = false;  // the window was shortened: smooth it once done
+      const std::vector<PlannedStep> before =
+          o_.no_added_chatter ? plan_ : std::vector<PlannedStep>();
+      const long saved = stats_.periods_saved;
       for (;;) {
         // The last window moves back as it shortens the plan, to keep the rest after it.
         a = std::min(a, Moving() - m - 3);
@@ -136,7 +140,34 @@ class Shortener {
           ++stats_.failed_evaluations;
         }
       }
+      // With no_added_chatter, a shorter window that still shakes an axis more than the plan did
+      // (its jerk flipping between the extremes from one period to the next, docs/planner.md) is
+      // not kept.
+      if (o_.no_added_chatter && Flips(plan_) > Flips(before)) {
+        plan_ = before;
+        stats_.periods_saved = saved;
+        ++stats_.reverted;
+      }
     }
+  }
+
+  // The periods of `plan` whose jerk, on some axis, has the other sign than the period before's,
+  // both beyond half the limit (as `dtis verify` counts jerk flips).
+  int Flips(const std::vector<PlannedStep>& plan) const {
+    int flips = 0;
+    for (int i = 0; i < n_axes_; ++i) {
+      double last = 0.0;
+      for (std::size_t k = 3; k < plan.size(); ++k) {
+        const double j =
+            plan[k].q[i] - 3.0 * plan[k - 1].q[i] + 3.0 * plan[k - 2].q[i] - plan[k - 3].q[i];
+        if (std::abs(j) > 0.5 * width_[3][i] && std::abs(last) > 0.5 * width_[3][i] &&
+            (j > 0.0) != (last > 0.0)) {
+          ++flips;
+        }
+        last = j;
+      }
+    }
+    return flips;
   }
 
   // The rows up to three after the last that moves (the plan's rows at rest after those are

@@ -438,6 +438,9 @@ Job ReadJob(TomlTable& root) {
       }
       job.vpop.planner = *interp::PlannerFromName(*pl);
     }
+    if (auto b = in->OptionalBoolean("least_time_no_added_chatter")) {
+      job.vpop.least_time.no_added_chatter = *b;
+    }
     if (auto f = in->OptionalPositiveNumber("limit_fraction")) {
       if (*f > 1.0)
         in->Fail("limit_fraction", fmt::format("expected a number in (0, 1], got {}", *f));

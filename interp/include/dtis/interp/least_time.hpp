@@ -35,6 +35,10 @@ struct LeastTimeOptions {
   int window_stride = 200;
   // Linear programs allowed for one attempt (one window, one number of periods).
   int max_lps = 30;
+  // Keep no shortened window whose axes' jerk flips sign between the extremes (beyond half the
+  // limit, from one period to the next) more often than the plan it replaced: chatter no worse
+  // than the look-ahead's or `vpop`'s, for less of the time (docs/planner.md measures both).
+  bool no_added_chatter = false;
   // Sweeps over the plan; the next runs only where the last saved a period.
   int sweeps = 2;
 };
@@ -65,6 +69,7 @@ struct LeastTimeStats {
   long failed_evaluations = 0;
   long periods_saved = 0;
   long smoothed = 0;  // windows whose path jerk was smoothed after they were shortened
+  long reverted = 0;  // shortened windows given back because their axes' jerk flipped more
 };
 
 // Shortens `plan` (at rest at both ends, every period within `limits`) in place. Where the path
