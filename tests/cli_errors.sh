@@ -182,7 +182,7 @@ if [ "$rs274" = rs274 ]; then
 fi
 
 # --planner: one of the two, and only for the VPOp interpolator.
-expect_usage planner-name "--planner: warp not in {vpop,lookahead}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
+expect_usage planner-name "--planner: warp not in {vpop,lookahead,least-time}" -- "$dtis" run "$work/line.toml" --planner warp -o "$work/out.csv"
 printf '\n[interpolator]\nkind = "taylor2"\n' | cat "$work/base.toml" - > "$work/taylor.toml"
 expect planner-taylor "--planner lookahead: $work/taylor.toml plans with a Taylor interpolator" -- "$dtis" run "$work/taylor.toml" --planner lookahead -o "$work/out.csv"
 # A file of another kind where a job is expected: say what to do with it.
