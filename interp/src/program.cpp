@@ -11,15 +11,10 @@
 #include <numbers>
 
 #include "dtis/core/error.hpp"
+#include "vector_sink.hpp"
 
 namespace dtis::interp {
 namespace {
-
-class VectorSink final : public SetpointSink {
- public:
-  void Accept(const Setpoint& sp) override { rows.push_back(sp); }
-  std::vector<Setpoint> rows;
-};
 
 using Planned = PlannedSegment;
 

@@ -13,6 +13,7 @@
 #include "dtis/core/error.hpp"
 #include "dtis/interp/motion_law.hpp"
 #include "dtis/interp/program.hpp"
+#include "vector_sink.hpp"
 
 namespace dtis::interp {
 
@@ -173,6 +174,15 @@ struct Limits {
   double v, a, j;  // per-axis planning limits after the rounding guard
 };
 
+// The limits the exact step plans an axis with: the limit fraction applied, the rounding guard
+// taken off.
+Limits ExactStepLimits(const Axis& axis, const VpopOptions& o) {
+  const double guard = RoundingGuard(axis, o), dt = o.period_s, f = o.limit_fraction;
+  return {.v = f * axis.vmax - guard / dt,
+          .a = f * axis.amax - 2.0 * guard / (dt * dt),
+          .j = f * axis.jmax - 4.0 * guard / (dt * dt * dt)};
+}
+
 struct Effective {
   double feed, acceleration, jerk;  // along the path, from the axis limits and the tangential ones
 };
@@ -298,11 +308,7 @@ class Planner {
         }
       }
       const double scale = PositionScale(a, o_);
-      const double guard = RoundingGuard(a, o_);
-      Limits l;
-      l.v = o_.limit_fraction * a.vmax - guard / dt_;
-      l.a = o_.limit_fraction * a.amax - 2.0 * guard / (dt_ * dt_);
-      l.j = o_.limit_fraction * a.jmax - 4.0 * guard / (dt_ * dt_ * dt_);
+      const Limits l = ExactStepLimits(a, o_);
       if (l.v < 0.999 * o_.limit_fraction * a.vmax || l.a < 0.999 * o_.limit_fraction * a.amax ||
           l.j < 0.999 * o_.limit_fraction * a.jmax) {
         throw Error(
@@ -1555,13 +1561,6 @@ VpopSummary Planner::Run() {
 
 namespace {
 
-// Keeps every setpoint (the look-ahead's plan, before the least-time planner shortens it).
-class PlanSink : public SetpointSink {
- public:
-  void Accept(const Setpoint& setpoint) override { rows.push_back(setpoint); }
-  std::vector<Setpoint> rows;
-};
-
 VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
                           const VpopOptions& options, SetpointSink& sink) {
   if (sink.WantsStops() || options.commit_horizon != std::numeric_limits<std::size_t>::max()) {
@@ -1579,11 +1578,11 @@ VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
   const bool corners = !path.SlowPoints().empty();
   VpopOptions o = options;
   o.planner = PlannerKind::kLookAhead;
-  PlanSink whole;
+  VectorSink whole;
   VpopSummary summary = Planner(path, machine, o, whole).Run();
   if (corners) {
     o.planner = PlannerKind::kVpop;
-    PlanSink paper;
+    VectorSink paper;
     const VpopSummary other = Planner(path, machine, o, paper).Run();
     if (other.motion_time_s < summary.motion_time_s) {
       whole = std::move(paper);
@@ -1600,10 +1599,8 @@ VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
   const auto axes = machine.Axes();
   const double dt = options.period_s;
   for (std::size_t i = 0; i < axes.size(); ++i) {
-    const double guard = RoundingGuard(axes[i], options), f = options.limit_fraction;
-    limits.v[i] = f * axes[i].vmax - guard / dt;
-    limits.a[i] = f * axes[i].amax - 2.0 * guard / (dt * dt);
-    limits.j[i] = f * axes[i].jmax - 4.0 * guard / (dt * dt * dt);
+    const Limits l = ExactStepLimits(axes[i], options);
+    limits.v[i] = l.v, limits.a[i] = l.a, limits.j[i] = l.j;
   }
   std::vector<PlannedStep> plan;
   plan.reserve(whole.rows.size());
