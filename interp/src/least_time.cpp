@@ -56,19 +56,18 @@ class Shortener {
             const LeastTimeOptions& options, std::vector<PlannedStep>* plan)
       : path_(path),
         machine_(machine),
-        l_(limits),
         o_(options),
         plan_(*plan),
         n_axes_(static_cast<int>(machine.Axes().size())) {
-    const double dt = l_.period_s;
+    const double dt = limits.period_s;
     for (int i = 0; i < n_axes_; ++i) {
-      width_[1][i] = l_.v[i] * dt;
-      width_[2][i] = l_.a[i] * dt * dt;
-      width_[3][i] = l_.j[i] * dt * dt * dt;
+      width_[1][i] = limits.v[i] * dt;
+      width_[2][i] = limits.a[i] * dt * dt;
+      width_[3][i] = limits.j[i] * dt * dt * dt;
     }
-    tangential_[1] = l_.feed * dt;
-    tangential_[2] = l_.tangential_acceleration * dt * dt;
-    tangential_[3] = l_.tangential_jerk * dt * dt * dt;
+    tangential_[1] = limits.feed * dt;
+    tangential_[2] = limits.tangential_acceleration * dt * dt;
+    tangential_[3] = limits.tangential_jerk * dt * dt * dt;
   }
 
   LeastTimeStats Run() {
@@ -230,12 +229,13 @@ class Shortener {
     return slope;
   }
 
-  // Replaces the plan's periods [a, a + m) by m - d periods covering the same arc length, if the
-  // sequential linear programs find such periods that keep every limit. Returns whether it did.
   // What an attempt asks of the window: fewer periods, or (at the same number) a path jerk that
   // changes less from one period to the next.
   enum class Goal { kShorter, kSmoother };
 
+  // Replaces the plan's periods [a, a + m) by m - d periods covering the same arc length (or, for
+  // kSmoother with d = 0, by as many whose path jerk changes less), if the sequential linear
+  // programs find such periods that keep every limit. Returns whether it did.
   bool Attempt(long a, long m, long d, Goal goal = Goal::kShorter) {
     ++stats_.attempts;
     end_s_ = plan_.back().s;
@@ -515,7 +515,6 @@ class Shortener {
 
   const PathSource& path_;
   const Machine& machine_;
-  LeastTimeLimits l_;
   LeastTimeOptions o_;
   std::vector<PlannedStep>& plan_;
   int n_axes_;
