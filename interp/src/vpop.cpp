@@ -1612,6 +1612,7 @@ VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
   summary.evaluations += stats.evaluations;
 
   // Hand the shortened plan over; a period the windows kept keeps its limiter.
+  summary.limited_by = {};
   long last_move = 0;
   std::size_t kept = 0;  // the look-ahead's row the next kept period matches
   for (std::size_t k = 0; k < plan.size(); ++k) {
@@ -1623,14 +1624,11 @@ VpopSummary PlanLeastTime(const PathSource& path, const Machine& machine,
     }
     sink.Accept(
         {.index = static_cast<long>(k), .s = p.s, .q = p.q, .state = p.state, .limiter = by});
+    ++summary.limited_by[static_cast<std::size_t>(by.kind)];
     if (k > 0 && (p.s != plan[k - 1].s || p.q != plan[k - 1].q)) last_move = static_cast<long>(k);
   }
   summary.setpoints = static_cast<long>(plan.size());
   summary.motion_time_s = static_cast<double>(last_move) * dt;
-  summary.limited_by = {};
-  for (std::size_t k = 0; k < plan.size(); ++k) {
-    if (plan[k].refined) ++summary.limited_by[static_cast<int>(Limiter::kLeastTimeWindow)];
-  }
   return summary;
 }
 
