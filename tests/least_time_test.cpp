@@ -22,12 +22,7 @@ namespace {
 
 using interp::PlannerKind;
 using test::Planned;
-
-Planned Plan(const PathSource& path, const Machine& machine, interp::VpopOptions o,
-             PlannerKind planner) {
-  o.planner = planner;
-  return test::PlanAndVerify(path, machine, o);
-}
+using test::PlanWith;
 
 struct Sample {
   io::Job job;
@@ -57,9 +52,9 @@ TEST(LeastTime, TridentIsWithinTwoPercentOfItsMinimumAtAnyLimits) {
       SCOPED_TRACE(fraction);
       interp::VpopOptions o = s.job.vpop;
       o.limit_fraction = fraction;
-      const Planned least = Plan(*s.path, *s.machine, o, PlannerKind::kLeastTime);
+      const Planned least = PlanWith(*s.path, *s.machine, o, PlannerKind::kLeastTime);
       EXPECT_TRUE(least.report.Passed()) << interp::FormatReport(least.report);
-      const Planned ahead = Plan(*s.path, *s.machine, o, PlannerKind::kLookAhead);
+      const Planned ahead = PlanWith(*s.path, *s.machine, o, PlannerKind::kLookAhead);
       EXPECT_LE(least.summary.motion_time_s, ahead.summary.motion_time_s);
       EXPECT_GT(least.summary.least_time_saved, 0);
       times.push_back(least.summary.motion_time_s);
@@ -78,7 +73,7 @@ TEST(LeastTime, SmoothCurvesAreWithinOnePercentOfTheirMinimum) {
        {std::pair{"circle_300", 1.857}, std::pair{"open_pocket_bottom", 1.539}}) {
     SCOPED_TRACE(name);
     const Sample s = Load(name);
-    const Planned least = Plan(*s.path, *s.machine, s.job.vpop, PlannerKind::kLeastTime);
+    const Planned least = PlanWith(*s.path, *s.machine, s.job.vpop, PlannerKind::kLeastTime);
     EXPECT_TRUE(least.report.Passed()) << interp::FormatReport(least.report);
     EXPECT_LE(least.summary.motion_time_s, 1.01 * minimum);
     EXPECT_GE(least.summary.motion_time_s, minimum - 0.005);  // not below the least time
@@ -90,25 +85,16 @@ TEST(LeastTime, SmoothCurvesAreWithinOnePercentOfTheirMinimum) {
 // acceleration range within a period: the look-ahead brakes harder into the corners than `vpop`
 // passes them; the least-time planner is faster than both.
 TEST(LeastTime, CornersOfAnAccelerationLimitedMachineAreNoSlowerThanEitherPlanner) {
-  std::vector<geometry::ChainMove> moves;
-  for (int k = 1; k <= 10; ++k) {
-    geometry::ChainMove m;
-    m.tip = {10.0 * k, 10.0 * (k % 2), 0.0};
-    m.line = k;
-    moves.push_back(m);
-  }
-  geometry::CornerOptions corners;
-  corners.contour_tol_mm = 0.01;
-  corners.feed_mm_s = 50.0;
   for (const double jerk : {5e4, 5e6}) {
     SCOPED_TRACE(jerk);
     const auto machine = test::Cartesian(100.0, 1000.0, jerk);
-    const geometry::G1Path path({0, 0, 0}, Eigen::Vector3d::UnitZ(), moves, *machine, corners);
+    const auto zigzag = test::Zigzag(*machine);
+    const geometry::G1Path& path = *zigzag;
     interp::VpopOptions o;
     o.feed_mm_s = 50.0;
-    const Planned paper = Plan(path, *machine, o, PlannerKind::kVpop);
-    const Planned ahead = Plan(path, *machine, o, PlannerKind::kLookAhead);
-    const Planned least = Plan(path, *machine, o, PlannerKind::kLeastTime);
+    const Planned paper = PlanWith(path, *machine, o, PlannerKind::kVpop);
+    const Planned ahead = PlanWith(path, *machine, o, PlannerKind::kLookAhead);
+    const Planned least = PlanWith(path, *machine, o, PlannerKind::kLeastTime);
     EXPECT_TRUE(least.report.Passed()) << interp::FormatReport(least.report);
     EXPECT_LE(least.summary.motion_time_s,
               std::min(paper.summary.motion_time_s, ahead.summary.motion_time_s));
@@ -129,8 +115,8 @@ TEST(LeastTime, NoAddedChatterFlipsTheAxesNoMoreThanThePlanItStartsFrom) {
   const Sample s = Load("trident");
   interp::VpopOptions o = s.job.vpop;
   o.least_time.no_added_chatter = true;
-  const Planned least = Plan(*s.path, *s.machine, o, PlannerKind::kLeastTime);
-  const Planned ahead = Plan(*s.path, *s.machine, o, PlannerKind::kLookAhead);
+  const Planned least = PlanWith(*s.path, *s.machine, o, PlannerKind::kLeastTime);
+  const Planned ahead = PlanWith(*s.path, *s.machine, o, PlannerKind::kLookAhead);
   EXPECT_TRUE(least.report.Passed()) << interp::FormatReport(least.report);
   EXPECT_LE(Flips(least.report), Flips(ahead.report));
   EXPECT_LE(least.summary.motion_time_s, ahead.summary.motion_time_s);

@@ -26,12 +26,7 @@ using interp::PlannerKind;
 using test::Cartesian;
 
 using test::Planned;
-
-Planned Plan(const PathSource& path, const Machine& machine, interp::VpopOptions o,
-             PlannerKind planner) {
-  o.planner = planner;
-  return test::PlanAndVerify(path, machine, o);
-}
+using test::PlanWith;
 
 // The largest feed the look-ahead holds viable at arc length s with acceleration a (bisection on
 // its slack).
@@ -95,7 +90,7 @@ TEST(LookAhead, StraightLineMatchesTheJerkLimitedClosedForm) {
   const geometry::LinePath line({0, 0, 0}, {100, 0, 0}, Eigen::Vector3d::UnitZ());
   interp::VpopOptions o;
   o.feed_mm_s = 5000.0 / 60.0;
-  const Planned p = Plan(line, *machine, o, PlannerKind::kLookAhead);
+  const Planned p = PlanWith(line, *machine, o, PlannerKind::kLookAhead);
   EXPECT_NEAR(p.summary.motion_time_s, 1.458199, 0.002 * 1.458199);
   EXPECT_TRUE(p.report.Passed()) << interp::FormatReport(p.report);
   EXPECT_EQ(p.summary.profile_repairs, 0);
@@ -111,8 +106,8 @@ TEST(LookAhead, SmoothSamplesAreNoSlowerThanThePapersPlanner) {
     const auto job = io::LoadJob(test::Source(std::string("samples/jobs/") + name + ".toml"));
     const auto machine = kinematics::LoadMachineFile(job.machine_file);
     const auto path = io::BuildPath(job);
-    const Planned paper = Plan(*path, *machine, job.vpop, PlannerKind::kVpop);
-    const Planned ahead = Plan(*path, *machine, job.vpop, PlannerKind::kLookAhead);
+    const Planned paper = PlanWith(*path, *machine, job.vpop, PlannerKind::kVpop);
+    const Planned ahead = PlanWith(*path, *machine, job.vpop, PlannerKind::kLookAhead);
     EXPECT_TRUE(ahead.report.Passed()) << interp::FormatReport(ahead.report);
     EXPECT_LE(ahead.summary.motion_time_s, 1.005 * paper.summary.motion_time_s);
   }
@@ -126,7 +121,7 @@ TEST(LookAhead, CircleAboveItsCurvatureFeedIsWithinTwoPercentOfMinimumTime) {
   job.vpop.feed_mm_s = 300.0;
   const auto machine = kinematics::LoadMachineFile(job.machine_file);
   const auto path = io::BuildPath(job);
-  const Planned p = Plan(*path, *machine, job.vpop, PlannerKind::kLookAhead);
+  const Planned p = PlanWith(*path, *machine, job.vpop, PlannerKind::kLookAhead);
   EXPECT_TRUE(p.report.Passed()) << interp::FormatReport(p.report);
   EXPECT_LE(p.summary.motion_time_s, 1.02 * 1.859);
   EXPECT_EQ(p.summary.back_offs, 0);
@@ -160,7 +155,7 @@ double MedianMotion(const PathSource& path, const Machine& machine, interp::Vpop
                     PlannerKind planner) {
   return MedianOverLoweredLimits([&](double fraction) {
     o.limit_fraction = fraction;
-    const Planned p = Plan(path, machine, o, planner);
+    const Planned p = PlanWith(path, machine, o, planner);
     EXPECT_TRUE(p.report.Passed()) << fraction << ": " << interp::FormatReport(p.report);
     return p.summary.motion_time_s;
   });
@@ -320,23 +315,14 @@ TEST(LookAhead, ShortG1BlocksAreFollowedNearlyAsFastAsByThePapersPlanner) {
 // the axes allow, stepped over every viable state and came to rest period after period (319 s
 // where the paper's planner takes 3.18 s). Both now plan within 2 % of each other at every jerk.
 TEST(LookAhead, AccelerationLimitedMachinesDoNotCrawl) {
-  std::vector<geometry::ChainMove> moves;
-  for (int k = 1; k <= 10; ++k) {
-    geometry::ChainMove m;
-    m.tip = {10.0 * k, 10.0 * (k % 2), 0.0};
-    m.line = k;
-    moves.push_back(m);
-  }
-  geometry::CornerOptions corners;
-  corners.contour_tol_mm = 0.01;
-  corners.feed_mm_s = 50.0;
   for (const double jerk : {5e4, 1e6, 5e6, 5e7}) {
     const auto machine = Cartesian(100.0, 1000.0, jerk);
-    const geometry::G1Path path({0, 0, 0}, Eigen::Vector3d::UnitZ(), moves, *machine, corners);
+    const auto zigzag = test::Zigzag(*machine);
+    const geometry::G1Path& path = *zigzag;
     interp::VpopOptions o;
     o.feed_mm_s = 50.0;
-    const Planned paper = Plan(path, *machine, o, PlannerKind::kVpop);
-    const Planned ahead = Plan(path, *machine, o, PlannerKind::kLookAhead);
+    const Planned paper = PlanWith(path, *machine, o, PlannerKind::kVpop);
+    const Planned ahead = PlanWith(path, *machine, o, PlannerKind::kLookAhead);
     EXPECT_TRUE(paper.report.Passed()) << jerk;
     EXPECT_TRUE(ahead.report.Passed()) << jerk;
     EXPECT_LE(ahead.summary.motion_time_s, 1.02 * paper.summary.motion_time_s) << jerk;

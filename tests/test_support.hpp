@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "dtis/core/error.hpp"
+#include "dtis/geometry/g1_path.hpp"
 #include "dtis/interp/verifier.hpp"
 #include "dtis/interp/vpop.hpp"
 #include "dtis/io/job.hpp"
@@ -116,6 +117,30 @@ inline Planned PlanAndVerify(const PathSource& path, const Machine& machine,
   p.report = interp::Verify(table.Table(), machine);
   p.points = std::move(sink.points);
   return p;
+}
+
+// PlanAndVerify with `planner`.
+inline Planned PlanWith(const PathSource& path, const Machine& machine, interp::VpopOptions o,
+                        interp::PlannerKind planner) {
+  o.planner = planner;
+  return PlanAndVerify(path, machine, o);
+}
+
+// A zigzag of ten G1 blocks of 14.1 mm with 90-degree turns, corners smoothed within 0.01 mm for
+// F 50 mm/s, from the origin.
+inline std::unique_ptr<geometry::G1Path> Zigzag(const Machine& machine) {
+  std::vector<geometry::ChainMove> moves;
+  for (int k = 1; k <= 10; ++k) {
+    geometry::ChainMove m;
+    m.tip = {10.0 * k, 10.0 * (k % 2), 0.0};
+    m.line = k;
+    moves.push_back(m);
+  }
+  geometry::CornerOptions corners;
+  corners.contour_tol_mm = 0.01;
+  corners.feed_mm_s = 50.0;
+  return std::make_unique<geometry::G1Path>(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d::UnitZ(),
+                                            moves, machine, corners);
 }
 
 // An XYZ machine with the same limits on every axis (mm, s).
