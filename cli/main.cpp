@@ -510,6 +510,13 @@ int Stream(const StreamArgs& a) {
   dtis::io::Job job = dtis::io::LoadJob(a.job);
   ApplyPlanner(a.planner, &job);
   ApplyJerkTime(a.jerk_time_ms, &job);
+  if (job.vpop.planner == dtis::interp::PlannerKind::kLeastTime) {
+    // Before any output is opened: the planner would refuse the stream only once it started.
+    throw dtis::Error(
+        "{}: [interpolator] planner = \"least-time\" plans a path whole and cannot stream it; "
+        "stream with --planner lookahead or vpop",
+        job.file);
+  }
   const std::string plotly = a.report.empty() ? "" : dtis::io::LoadPlotly();  // fail before moving
   const auto machine = dtis::io::LoadJobMachine(job);
   std::optional<dtis::AxisVector> from;

@@ -205,6 +205,8 @@ expect compare-tol "key 'compare.g1_tolerances_mm': expected tolerances > 0 mm, 
 
 expect stream-from "--from: 2 values; machine 'Mikron UCP 710 XYZ (Beudaert 2012, Table 1)' has 3 axes" -- "$dtis" stream "$work/line.toml" --from 1,2 --to /dev/null --record "$work/out.csv"
 expect stream-to "$work/no-such-dir/s.txt: cannot open the stream output" -- "$dtis" stream "$work/line.toml" --to "$work/no-such-dir/s.txt" --record "$work/out.csv"
+{ cat "$work/line.toml"; printf '\n[interpolator]\nplanner = "least-time"\n'; } > "$work/least.toml"
+expect stream-least-time "least.toml: [interpolator] planner = \"least-time\" plans a path whole and cannot stream it" -- "$dtis" stream "$work/least.toml" --to "$work/out.txt" --record "$work/out.csv"
 expect stream-hal-channel "--to hal:x: expected hal:N, N the streamer channel 0..7" -- "$dtis" stream "$work/line.toml" --to hal:x --record "$work/out.csv"
 expect report-no-plotly "cannot read plotly.js for the HTML report from '$work/no-plotly.js'" -- env DTIS_PLOTLY_JS="$work/no-plotly.js" "$dtis" run "$work/line.toml" -o "$work/out.csv" --report "$work/out.html"
 
